@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# Idempotent bootstrap: a CPython 3.12 venv with the pinned ROS 2 Jazzy wheels and this project.
+#
+#   bringup_scripts/setup.sh          # creates/updates the venv (default: <repo>/.venv)
+#   OST_VENV=/path/venv  OST_PYTHON=/path/python3.12  bringup_scripts/setup.sh
+#
+# A second run with nothing changed returns in well under a second (a stamp file records the
+# hash of the lock file and the packaging files). Prints the venv path on its last line.
+set -euo pipefail
+
+repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+venv="${OST_VENV:-$repo/.venv}"
+lock="$repo/requirements.lock"
+quiet="${OST_SETUP_QUIET:-0}"
+
+say() { [ "$quiet" = 1 ] || echo "setup: $*" >&2; }
+die() { echo "setup: error: $*" >&2; exit 2; }
+
+is_py312() {  # prints nothing; true when "$1" runs and is CPython 3.12
+  "$1" -c 'import sys; sys.exit(0 if sys.version_info[:2] == (3, 12) else 1)' >/dev/null 2>&1
+}
+
+find_python() {
+  local tried=() cand
+  if [ -n "${OST_PYTHON:-}" ]; then
+    is_py312 "$OST_PYTHON" && { echo "$OST_PYTHON"; return; }
+    die "OST_PYTHON=$OST_PYTHON is not a working CPython 3.12"
+  fi
+  tried+=("OST_PYTHON (unset)")
+  if command -v python3.12 >/dev/null 2>&1; then
+    cand="$(command -v python3.12)"
+    is_py312 "$cand" && { echo "$cand"; return; }
+    tried+=("$cand (does not run; a pyenv shim needs PYENV_VERSION)")
+  else
+    tried+=("python3.12 on PATH (not found)")
+  fi
+  local root="${PYENV_ROOT:-$HOME/.pyenv}"
+  for cand in "$root"/versions/3.12*/bin/python3; do
+    [ -x "$cand" ] || continue
+    is_py312 "$cand" && { echo "$cand"; return; }
+    tried+=("$cand")
+  done
+  tried+=("$root/versions/3.12*/bin/python3")
+  die "no CPython 3.12 found (ROS 2 Jazzy wheels need exactly 3.12); tried: $(IFS=';'; echo "${tried[*]}"). Set OST_PYTHON."
+}
+
+stamp_of() {
+  cat "$lock" "$repo/setup.py" "$repo/setup.cfg" "$repo/package.xml" | sha256sum | cut -d' ' -f1
+}
+
+want="$(stamp_of)"
+if [ -x "$venv/bin/python" ] && [ -f "$venv/.ost-stamp" ] && [ "$(cat "$venv/.ost-stamp")" = "$want" ] \
+   && is_py312 "$venv/bin/python"; then
+  say "venv up to date: $venv"
+  echo "$venv"
+  exit 0
+fi
+
+py="$(find_python)"
+if [ ! -x "$venv/bin/python" ] || ! is_py312 "$venv/bin/python"; then
+  say "creating venv $venv with $py"
+  rm -rf "$venv"
+  "$py" -m venv "$venv"
+fi
+say "installing pinned dependencies (first run: about a minute)"
+"$venv/bin/python" -m pip install -q --disable-pip-version-check --upgrade "pip==26.3" >&2
+"$venv/bin/python" -m pip install -q --disable-pip-version-check -r "$lock" >&2
+"$venv/bin/python" -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e "$repo" >&2
+echo "$want" > "$venv/.ost-stamp"
+say "ready: $venv (run: $venv/bin/ost --help)"
+echo "$venv"

@@ -1,0 +1,171 @@
+"""Message schemas shared by the protocol core and the ROS layer.
+
+Plain dataclasses, ROS-free. Every message has a ``type`` tag and a schema ``version``; the codec
+(:mod:`ost_msgs_py.codec`) turns them into JSON text (carried in ``std_msgs/msg/String`` on the
+wire) and back with strict validation, so ``ros2 topic echo`` shows readable content.
+
+Two families:
+- agent ↔ agent (the comm module): :class:`ObjectFound`, :class:`SearchDone`, :class:`Selection`,
+  and the help-based protocol's :class:`HelpRequest`, :class:`HelpOffer`, :class:`HelpAccept`,
+  :class:`HelpRelease`;
+- agent ↔ world (sensing and acting): :class:`Observation`, :class:`Action`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+from typing import ClassVar
+
+Cell = tuple[int, int]
+
+SCHEMA_VERSION = 1
+
+
+class ActionKind(str, Enum):
+    WAIT = "wait"
+    MOVE = "move"
+    CARRY = "carry"
+
+
+@dataclass(frozen=True)
+class ObjectInfo:
+    """What sensing an object reveals: its identity, where it is, where it goes, how many carry it."""
+
+    id: int
+    location: Cell
+    destination: Cell
+    required: int
+
+
+# ----------------------------------------------------------------------------- agent ↔ agent
+
+
+@dataclass(frozen=True)
+class ObjectFound:
+    """Broadcast when an agent senses an object for the first time (CCP: every found object)."""
+
+    TYPE: ClassVar[str] = "object_found"
+    sender: int
+    t: int
+    object: ObjectInfo
+    version: int = SCHEMA_VERSION
+
+
+@dataclass(frozen=True)
+class SearchDone:
+    """Broadcast once when an agent has swept its whole subarea."""
+
+    TYPE: ClassVar[str] = "search_done"
+    sender: int
+    t: int
+    version: int = SCHEMA_VERSION
+
+
+@dataclass(frozen=True)
+class Selection:
+    """An agent's own picks in one coordination process (Algorithm Coordination, step 1).
+
+    ``objects[r]`` is the object the sender selected in round r (-1 once it selects nothing).
+    Every peer recomputes these from shared knowledge and flags any disagreement.
+    """
+
+    TYPE: ClassVar[str] = "selection"
+    sender: int
+    t: int
+    coordination: int
+    objects: tuple[int, ...]
+    version: int = SCHEMA_VERSION
+
+
+@dataclass(frozen=True)
+class HelpRequest:
+    """HCP: the owner of an object asks for ``required - 1`` helpers."""
+
+    TYPE: ClassVar[str] = "help_request"
+    sender: int
+    t: int
+    object: ObjectInfo
+    version: int = SCHEMA_VERSION
+
+
+@dataclass(frozen=True)
+class HelpOffer:
+    """HCP: an available agent offers help, with the time it would arrive at the object."""
+
+    TYPE: ClassVar[str] = "help_offer"
+    sender: int
+    t: int
+    object: int
+    requester: int
+    arrival: int
+    version: int = SCHEMA_VERSION
+
+
+@dataclass(frozen=True)
+class HelpAccept:
+    """HCP: the requester's chosen partners for an object (everyone else is released)."""
+
+    TYPE: ClassVar[str] = "help_accept"
+    sender: int
+    t: int
+    object: int
+    partners: tuple[int, ...]
+    version: int = SCHEMA_VERSION
+
+
+@dataclass(frozen=True)
+class HelpRelease:
+    """HCP: a requester gives up its partners (deadlock handling) or declines all offers."""
+
+    TYPE: ClassVar[str] = "help_release"
+    sender: int
+    t: int
+    object: int
+    version: int = SCHEMA_VERSION
+
+
+# ----------------------------------------------------------------------------- agent ↔ world
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What the world tells an agent at the start of step ``t``: its pose and its sensor reading.
+
+    ``sensed`` are the undelivered objects in the 3×3 block around the agent.
+    """
+
+    TYPE: ClassVar[str] = "observation"
+    agent: int
+    t: int
+    position: Cell
+    sensed: tuple[ObjectInfo, ...] = ()
+    version: int = SCHEMA_VERSION
+
+
+@dataclass(frozen=True)
+class Action:
+    """An agent's action for step ``t``: wait, move one cell, or carry ``object`` one cell.
+
+    A carry moves the object (and its carriers) only when enough agents carry it together in the
+    same step; until the group is complete the carriers hold the object where it is.
+
+    ``state`` is the agent's global FSA state when it acted (for bookkeeping and display).
+    """
+
+    TYPE: ClassVar[str] = "action"
+    agent: int
+    t: int
+    kind: ActionKind
+    direction: Cell = (0, 0)
+    object: int = -1
+    state: str = ""
+    version: int = SCHEMA_VERSION
+
+
+AGENT_MESSAGES: tuple[type, ...] = (ObjectFound, SearchDone, Selection, HelpRequest, HelpOffer,
+                                    HelpAccept, HelpRelease)
+WORLD_MESSAGES: tuple[type, ...] = (Observation, Action)
+ALL_MESSAGES: dict[str, type] = {cls.TYPE: cls for cls in AGENT_MESSAGES + WORLD_MESSAGES}
+
+AgentMessage = ObjectFound | SearchDone | Selection | HelpRequest | HelpOffer | HelpAccept | HelpRelease
+

@@ -1,0 +1,80 @@
+"""The ``ost`` command: one CLI, subcommands in the verb pattern of ros2cli.
+
+Every subcommand module exposes ``register(subparsers)``, which adds its parser and sets
+``func`` (a callable taking the parsed namespace and returning an exit code). Bad input anywhere
+ends in one line on stderr, ``ost <verb>: error: <what>``, and exit code 2 — never a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from typing import Callable, Sequence
+
+from ost_ros.errors import UsageError
+
+__all__ = ["OneLineParser", "UsageError", "build_parser", "main"]
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with one-line errors (argparse prints usage + error; we print only the error)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+# Modules that add subcommands, in the order they appear in ``ost --help``.
+# Each may be missing its optional dependencies; it then is left out with a note in --help.
+VERB_MODULES: tuple[str, ...] = (
+    "ost_ros.commands.core",
+    "ost_ros.negotiation.cli",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = OneLineParser(
+        prog="ost",
+        description="Object-Sorting Task: scenarios, simulation and the cooperation protocols.",
+    )
+    sub = parser.add_subparsers(dest="verb", metavar="VERB", parser_class=OneLineParser)
+    for name in VERB_MODULES:
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            # Only tolerate the verb module itself being absent (a partial install), not a
+            # missing dependency inside it: that is a real error and should show.
+            if exc.name != name:
+                raise
+            continue
+        module.register(sub)
+    return parser
+
+
+def run(func: Callable[[argparse.Namespace], int], args: argparse.Namespace, prog: str) -> int:
+    """Run a verb, turning user errors into one line and exit code 2."""
+    try:
+        return int(func(args) or 0)
+    except UsageError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:  # `ost sim ... | head` must not print a traceback
+        return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 0 if args.verb is None else 2
+    return run(args.func, args, getattr(args, "prog", "ost"))
+
+
+if __name__ == "__main__":
+    # Run through the package's own module so exception classes are the same objects.
+    from ost_ros.cli import main as _main
+
+    sys.exit(_main())

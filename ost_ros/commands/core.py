@@ -1,0 +1,245 @@
+"""Core verbs: ``ost generate``, ``ost sim``, ``ost schedule``."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from ost_ros.errors import UsageError
+from ost_ros.coordination import CoordinationPolicy, coordinate
+from ost_ros.model import DEFAULT_HEIGHT, DEFAULT_NMAX, DEFAULT_WIDTH, Grid, ObjectSpec
+from ost_ros.scenario import (ScenarioError, dump_scenario, generate_scenario, load_scenario,
+                              with_team)
+from ost_ros.simulator import PROTOCOLS, simulate
+
+
+def _positive(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid integer {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def _natural(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid integer {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be non-negative, got {value}")
+    return value
+
+
+def _fraction(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid number {text!r}") from None
+    if not 0 < value <= 1:
+        raise argparse.ArgumentTypeError(f"must be in (0, 1], got {value}")
+    return value
+
+
+def _leaf(sub, name: str, func, **kwargs) -> argparse.ArgumentParser:
+    parser = sub.add_parser(name, **kwargs)
+    parser.set_defaults(func=func, prog=parser.prog)
+    return parser
+
+
+def register(sub) -> None:
+    p = _leaf(sub, "generate", cmd_generate, help="write a random scenario (paper §5.1)",
+              description="Write the paper's random scenario: distinct uniform object locations, "
+                          "uniform destinations, n_i uniform in 1..nmax; ids = rank by (x, y). "
+                          "The objects depend on --seed only, not on --agents.")
+    p.add_argument("--agents", type=_positive, required=True, help="number of agents N")
+    p.add_argument("--objects", type=_natural, required=True, help="number of objects M")
+    p.add_argument("--seed", type=_natural, required=True, help="random seed")
+    p.add_argument("--width", type=_positive, default=DEFAULT_WIDTH, help="grid width (500)")
+    p.add_argument("--height", type=_positive, default=DEFAULT_HEIGHT, help="grid height (200)")
+    p.add_argument("--nmax", type=_positive, default=DEFAULT_NMAX,
+                   help="largest number of agents an object needs (10)")
+    p.add_argument("-o", "--output", help="file to write (default: standard output)")
+
+    p = _leaf(sub, "sim", cmd_sim, help="simulate a scenario in-process",
+              description="Run a scenario in the in-process reference simulator and print the "
+                          "makespan, last delivery and per-agent cost / idle / carry time.")
+    p.add_argument("scenario", help="scenario file (YAML)")
+    p.add_argument("--protocol", choices=PROTOCOLS, default="ccp", help="cooperation protocol")
+    trig = p.add_mutually_exclusive_group()
+    trig.add_argument("--ci", type=_positive, default=1,
+                      help="coordination interval: coordinate when this many found objects are "
+                           "unscheduled (default 1; >= M means after the whole search)")
+    trig.add_argument("--interval", type=_positive, help="coordinate every T time steps instead")
+    trig.add_argument("--area-fraction", type=_fraction,
+                      help="coordinate each time this fraction of the area is searched instead")
+    p.add_argument("--agents", type=_positive,
+                   help="replace the scenario's team by N agents (default partition and bases)")
+    p.add_argument("--max-steps", type=_positive, help="stop after this many steps")
+    p.add_argument("--json", action="store_true", help="print the full result as JSON")
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="progress bar on stderr (default: when stderr is a terminal)")
+
+    p = _leaf(sub, "schedule", cmd_schedule, help="run only the Coordination algorithm",
+              description="Run Algorithm Coordination on a state file "
+                          '{"agents":[{"id","cost","location"}],'
+                          '"objects":[{"id","location","destination","required"}]} '
+                          "and print the schedule in scheduling order.")
+    p.add_argument("state", help="state file (JSON; '-' for standard input)")
+    p.add_argument("--json", action="store_true", help="print JSON")
+
+
+# ----------------------------------------------------------------------------- generate
+
+
+def cmd_generate(args: argparse.Namespace) -> int:
+    try:
+        scenario = generate_scenario(args.agents, args.objects, args.seed,
+                                     Grid(args.width, args.height), args.nmax)
+    except ScenarioError as exc:
+        raise UsageError(str(exc)) from None
+    text = dump_scenario(scenario)
+    if args.output:
+        try:
+            Path(args.output).write_text(text)
+        except OSError as exc:
+            raise UsageError(f"{args.output}: cannot write ({exc.strerror})") from None
+    else:
+        sys.stdout.write(text)
+    return 0
+
+
+# ----------------------------------------------------------------------------- sim
+
+
+def cmd_sim(args: argparse.Namespace) -> int:
+    try:
+        scenario = load_scenario(args.scenario)
+        if args.agents is not None:
+            scenario = with_team(scenario, args.agents)
+    except ScenarioError as exc:
+        raise UsageError(str(exc)) from None
+    policy = CoordinationPolicy(ci=args.ci, interval=args.interval, area_fraction=args.area_fraction)
+    show = sys.stderr.isatty() if args.progress is None else args.progress
+    bar = None
+    on_step = None
+    if show:
+        from tqdm import tqdm
+        total = len(scenario.objects)
+        bar = tqdm(total=total, desc="delivered", unit="obj", file=sys.stderr, leave=False)
+
+        def on_step(world, _actions):
+            done = sum(o.delivered is not None for o in world.objects.values())
+            if done != bar.n:
+                bar.update(done - bar.n)
+            if world.t % 500 == 0:
+                bar.set_postfix(step=world.t, refresh=False)
+    try:
+        result = simulate(scenario, args.protocol, policy, max_steps=args.max_steps, on_step=on_step)
+    finally:
+        if bar is not None:
+            bar.close()
+    if args.json:
+        print(json.dumps(result.to_dict(), indent=1))
+    else:
+        print(result.summary())
+    return 0 if result.completed else 1
+
+
+# ----------------------------------------------------------------------------- schedule
+
+
+def _cell(value: Any, where: str) -> tuple[int, int]:
+    if (not isinstance(value, (list, tuple)) or len(value) != 2
+            or not all(isinstance(v, int) and not isinstance(v, bool) for v in value)):
+        raise UsageError(f"{where}: expected [x, y] integers, got {value!r}")
+    return (value[0], value[1])
+
+
+def _get_int(d: dict, key: str, where: str, minimum: int = 0) -> int:
+    v = d.get(key)
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise UsageError(f"{where}.{key}: expected an integer, got {v!r}")
+    if v < minimum:
+        raise UsageError(f"{where}.{key}: must be at least {minimum}, got {v}")
+    return v
+
+
+def _check_keys(d: Any, where: str, keys: tuple[str, ...]) -> dict:
+    if not isinstance(d, dict):
+        raise UsageError(f"{where}: expected an object, got {type(d).__name__}")
+    for k in d:
+        if k not in keys:
+            raise UsageError(f"{where}: unknown key {k!r} (allowed: {', '.join(keys)})")
+    for k in keys:
+        if k not in d:
+            raise UsageError(f"{where}: missing key {k!r}")
+    return d
+
+
+def parse_state(data: Any) -> tuple[list[int], list[int], list[tuple[int, int]], list[ObjectSpec]]:
+    data = _check_keys(data, "state", ("agents", "objects"))
+    for key in ("agents", "objects"):
+        if not isinstance(data[key], list):
+            raise UsageError(f"{key}: expected a list")
+    agents = []
+    for k, a in enumerate(data["agents"]):
+        a = _check_keys(a, f"agents[{k}]", ("id", "cost", "location"))
+        agents.append((_get_int(a, "id", f"agents[{k}]"), _get_int(a, "cost", f"agents[{k}]"),
+                       _cell(a["location"], f"agents[{k}].location")))
+    if not agents:
+        raise UsageError("agents: the team needs at least one agent")
+    agents.sort()
+    for (x, _, _), (y, _, _) in zip(agents, agents[1:]):
+        if x == y:
+            raise UsageError(f"agents: duplicate id {x}")
+    objects, seen = [], set()
+    for k, o in enumerate(data["objects"]):
+        o = _check_keys(o, f"objects[{k}]", ("id", "location", "destination", "required"))
+        obj = ObjectSpec(_get_int(o, "id", f"objects[{k}]"), _cell(o["location"], f"objects[{k}].location"),
+                         _cell(o["destination"], f"objects[{k}].destination"),
+                         _get_int(o, "required", f"objects[{k}]", 1))
+        if obj.id in seen:
+            raise UsageError(f"objects[{k}].id: duplicate id {obj.id}")
+        if obj.required > len(agents):
+            raise UsageError(f"objects[{k}].required: {obj.required} exceeds the team of "
+                             f"{len(agents)} agents")
+        seen.add(obj.id)
+        objects.append(obj)
+    return [a[0] for a in agents], [a[1] for a in agents], [a[2] for a in agents], objects
+
+
+def cmd_schedule(args: argparse.Namespace) -> int:
+    try:
+        text = sys.stdin.read() if args.state == "-" else Path(args.state).read_text()
+    except FileNotFoundError:
+        raise UsageError(f"{args.state}: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UsageError(f"{args.state}: cannot read ({exc.__class__.__name__})") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise UsageError(f"{args.state}: invalid JSON at line {exc.lineno}: {exc.msg}") from None
+    ids, cost, loc, objects = parse_state(data)
+    result = coordinate(ids, cost, loc, objects)
+    out = {
+        "schedule": [{"object": a.object, "agents": list(a.agents), "start": a.start,
+                      "finish": a.finish} for a in result.schedule],
+        "agents": [{"id": i, "cost": int(c), "location": [int(v) for v in xy]}
+                   for i, c, xy in zip(ids, result.cost, result.loc)],
+    }
+    if args.json:
+        print(json.dumps(out, indent=1))
+    else:
+        print(f"{'object':>6} {'start':>7} {'finish':>7}  agents")
+        for s in out["schedule"]:
+            print(f"{s['object']:>6} {s['start']:>7} {s['finish']:>7}  {s['agents']}")
+        print()
+        print(f"{'agent':>6} {'cost':>7}  location")
+        for a in out["agents"]:
+            print(f"{a['id']:>6} {a['cost']:>7}  {a['location']}")
+    return 0

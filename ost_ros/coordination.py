@@ -1,0 +1,154 @@
+"""Algorithm *Coordination* of the cost-balanced protocol (paper §3.3), and its triggers (§3.1).
+
+Readings (see docs/interpretation.md):
+- C_ij = CA_j + dist(loc_j, l_i): the time agent j could reach object i, Manhattan distance;
+- every agent selects its min-C object (ties: lower object id);
+- M_i = the n_i-th smallest C_ij over all agents: when o_i's group could be complete;
+- Opt = the selected object with minimum M_i (ties: lower object id);
+- its group = the n_p agents with smallest C_pj (ties: lower agent id); each sets
+  CA := M_p + dist(l_p, d_p) and loc := d_p.
+
+The function is pure and deterministic: every agent runs it on the same inputs and obtains the
+same schedule, which is what lets CCP agree without further communication.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from ost_ros.model import ObjectSpec
+
+# Larger than any reachable cost, small enough that sums never overflow int64.
+_FAR = np.int64(1) << 60
+
+
+@dataclass(frozen=True)
+class Assignment:
+    """One scheduled object: its group, when carrying starts (M_p) and when it is delivered."""
+
+    object: int
+    agents: tuple[int, ...]
+    start: int
+    finish: int
+
+
+@dataclass
+class CoordinationResult:
+    schedule: list[Assignment]
+    cost: np.ndarray        # CA_j after scheduling, per agent (same order as the input)
+    loc: np.ndarray         # (N, 2) location of each agent when it becomes free
+    selections: np.ndarray  # (rounds, N): object id each agent selected in each round
+
+
+def _reach(cost: np.ndarray, loc: np.ndarray, where: np.ndarray) -> np.ndarray:
+    """C[i, j] = cost_j + |where_i - loc_j|_1 for objects i (rows) and agents j (columns)."""
+    return (cost[None, :] + np.abs(where[:, None, 0] - loc[None, :, 0])
+            + np.abs(where[:, None, 1] - loc[None, :, 1]))
+
+
+def coordinate(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Sequence[int]],
+               objects: Sequence[ObjectSpec]) -> CoordinationResult:
+    """Schedule ``objects`` on the agents whose free time is ``cost`` and position ``loc``.
+
+    ``agent_ids`` must be ascending (the tie-break order). Returns the schedule in scheduling
+    order. Cost per round is O(M·N) numpy work on the agents just assigned.
+    """
+    ids = np.asarray(agent_ids, dtype=np.int64)
+    if ids.size and np.any(np.diff(ids) <= 0):
+        raise ValueError("agent ids must be strictly ascending")
+    cost = np.array(cost, dtype=np.int64).reshape(-1)
+    loc = np.array(loc, dtype=np.int64).reshape(-1, 2)
+    n = ids.size
+    if cost.size != n or loc.shape[0] != n:
+        raise ValueError("agent_ids, cost and loc must have one entry per agent")
+    objs = sorted(objects, key=lambda o: o.id)
+    m = len(objs)
+    selections = np.full((m, n), -1, dtype=np.int64)
+    if m == 0:
+        return CoordinationResult([], cost, loc, selections)
+    need = np.array([o.required for o in objs], dtype=np.int64)
+    if need.max() > n or need.min() < 1:
+        bad = next(o for o in objs if not 1 <= o.required <= n)
+        raise ValueError(f"object {bad.id} needs {bad.required} agents; the team has {n}")
+    obj_ids = np.array([o.id for o in objs], dtype=np.int64)
+    where = np.array([o.location for o in objs], dtype=np.int64)
+    dest = np.array([o.destination for o in objs], dtype=np.int64)
+    carry = np.abs(where - dest).sum(axis=1)
+
+    reach = _reach(cost, loc, where)   # (M, N); rows of scheduled objects are set to _FAR
+    alive = np.ones(m, dtype=bool)
+    schedule: list[Assignment] = []
+    for r in range(m):
+        # Step 1: every agent selects its cost-optimal object (argmin: first = lowest id).
+        choice = np.argmin(reach, axis=0)
+        selections[r] = obj_ids[choice]
+        # Step 2: M_i for each selected object; Opt = the smallest (first = lowest id).
+        cand = np.unique(choice)
+        ordered = np.sort(reach[cand], axis=1)
+        m_i = ordered[np.arange(cand.size), need[cand] - 1]
+        k = int(np.argmin(m_i))
+        p, m_p = int(cand[k]), int(m_i[k])
+        # Step 3: the n_p cheapest agents (stable sort: ties to the lower agent id).
+        group = np.sort(np.argsort(reach[p], kind="stable")[: need[p]])
+        finish = m_p + int(carry[p])
+        cost[group] = finish
+        loc[group] = dest[p]
+        schedule.append(Assignment(int(obj_ids[p]), tuple(int(a) for a in ids[group]), m_p, finish))
+        alive[p] = False
+        # Only the group's columns changed; scheduled rows stay out of every argmin.
+        reach[:, group] = np.where(alive[:, None], _reach(cost[group], loc[group], where), _FAR)
+        reach[p] = _FAR
+    return CoordinationResult(schedule, cost, loc, selections)
+
+
+# ----------------------------------------------------------------------------- triggers
+
+
+@dataclass(frozen=True)
+class CoordinationPolicy:
+    """When to coordinate (paper §3.1). One trigger is active; the end of the whole search
+    always triggers a final coordination of whatever is left.
+
+    - ``ci``: when the number of found-but-unscheduled objects reaches CI (the paper's choice);
+    - ``interval``: every T time steps (common clock);
+    - ``area_fraction``: each time another fraction f of the whole area has been searched.
+    """
+
+    ci: int = 1
+    interval: int | None = None
+    area_fraction: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.ci < 1:
+            raise ValueError(f"CI must be at least 1, got {self.ci}")
+        if self.interval is not None and self.interval < 1:
+            raise ValueError(f"interval must be at least 1 step, got {self.interval}")
+        if self.area_fraction is not None and not 0 < self.area_fraction <= 1:
+            raise ValueError(f"area fraction must be in (0, 1], got {self.area_fraction}")
+        if self.interval is not None and self.area_fraction is not None:
+            raise ValueError("choose one trigger: interval or area fraction")
+
+    @property
+    def name(self) -> str:
+        if self.interval is not None:
+            return f"interval={self.interval}"
+        if self.area_fraction is not None:
+            return f"area={self.area_fraction:g}"
+        return f"CI={self.ci}"
+
+    def due(self, t: int, unscheduled: int, searched_before: float, searched_now: float) -> bool:
+        """Whether a coordination point is reached in step ``t`` (before the final one).
+
+        ``searched_before``/``searched_now``: the fraction of the whole sweep done at the
+        previous and at this step (all agents compute it the same way from the common clock).
+        """
+        if unscheduled == 0:
+            return False
+        if self.interval is not None:
+            return (t + 1) % self.interval == 0
+        if self.area_fraction is not None:
+            f = self.area_fraction
+            return int(searched_now / f + 1e-9) > int(searched_before / f + 1e-9)
+        return unscheduled >= self.ci

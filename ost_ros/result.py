@@ -1,0 +1,108 @@
+"""The outcome of a run, as printed by ``ost sim`` and published by the world node."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+
+@dataclass
+class AgentRecord:
+    """Per-agent accounting. ``cost`` is the step the agent was back at base for good (its
+    finishing time; the paper's cost of an operation model is the maximum over agents)."""
+
+    id: int
+    finished: int | None = None
+    idle: int = 0      # steps spent waiting (for a group, or for a schedule) before finishing
+    carry: int = 0     # steps spent carrying an object
+    search: int = 0    # moves along its sweep
+    travel: int = 0    # other moves: to objects and back to base
+
+    @property
+    def cost(self) -> int | None:
+        return self.finished
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"id": self.id, "cost": self.cost, "idle": self.idle, "carry": self.carry,
+                "search": self.search, "travel": self.travel}
+
+
+@dataclass
+class ObjectRecord:
+    id: int
+    agents: tuple[int, ...]   # the group that carried it
+    start: int | None         # step the carrying began (the group was complete)
+    delivered: int | None     # step it reached its destination
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"id": self.id, "agents": list(self.agents), "start": self.start,
+                "delivered": self.delivered}
+
+
+@dataclass
+class RunResult:
+    makespan: int | None          # step the last agent was back at base (None if incomplete)
+    last_delivery: int            # step the last object reached its destination
+    completed: bool
+    steps: int
+    agents: list[AgentRecord]
+    objects: list[ObjectRecord]
+    rejections: list[str] = field(default_factory=list)
+    protocol: str = "ccp"
+    trigger: str = ""
+    predicted_makespan: int | None = None
+    coordinations: int = 0
+    messages: int = 0
+    agreement: bool = True        # every agent ended with the same global schedule
+    warnings: list[str] = field(default_factory=list)
+    found: dict[int, int] = field(default_factory=dict)   # object id -> step it was found
+    schedule: list = field(default_factory=list)          # planned Assignments, in order
+    error: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        objects = []
+        for o in self.objects:
+            d = o.to_dict()
+            d["found"] = self.found.get(o.id)
+            objects.append(d)
+        return {
+            "makespan": self.makespan,
+            "last_delivery": self.last_delivery,
+            "completed": self.completed,
+            "protocol": self.protocol,
+            "trigger": self.trigger,
+            "predicted_makespan": self.predicted_makespan,
+            "steps": self.steps,
+            "coordinations": self.coordinations,
+            "messages": self.messages,
+            "agreement": self.agreement,
+            "agents": [a.to_dict() for a in self.agents],
+            "objects": objects,
+            "schedule": [{"object": a.object, "agents": list(a.agents), "start": a.start,
+                          "finish": a.finish} for a in self.schedule],
+            "rejections": self.rejections,
+            "warnings": self.warnings,
+            "error": self.error,
+        }
+
+    def summary(self) -> str:
+        """Human-readable report: headline figures, then one line per agent."""
+        lines = []
+        status = "completed" if self.completed else f"NOT completed ({self.error or 'step limit'})"
+        lines.append(f"protocol {self.protocol} ({self.trigger}): {status}")
+        lines.append(f"makespan        {self.makespan}")
+        if self.predicted_makespan is not None:
+            lines.append(f"predicted       {self.predicted_makespan}")
+        lines.append(f"last delivery   {self.last_delivery}")
+        lines.append(f"objects         {sum(o.delivered is not None for o in self.objects)}"
+                     f"/{len(self.objects)} delivered")
+        lines.append(f"coordinations   {self.coordinations}   messages {self.messages}")
+        if self.rejections:
+            lines.append(f"rejected actions {len(self.rejections)} (first: {self.rejections[0]})")
+        if self.warnings:
+            lines.append(f"warnings        {len(self.warnings)} (first: {self.warnings[0]})")
+        lines.append("")
+        lines.append(f"{'agent':>5} {'cost':>8} {'idle':>8} {'carry':>8} {'search':>8} {'travel':>8}")
+        for a in self.agents:
+            lines.append(f"{a.id:>5} {str(a.cost):>8} {a.idle:>8} {a.carry:>8} {a.search:>8} "
+                         f"{a.travel:>8}")
+        return "\n".join(lines)

@@ -1,0 +1,274 @@
+"""Scenario files (YAML): strict loading and validation, writing, and the paper's random generator.
+
+File format::
+
+    grid: {width: 500, height: 200}
+    partition: [5, 2]            # optional: Table 2 / closest aspect ratio by default
+    agents:                      # optional: one per subarea, based at its sweep start
+      - {id: 0, base: [0, 1]}
+    objects:
+      - {id: 0, location: [12, 7], destination: [300, 150], required: 3}
+    nmax: 10                     # optional: defaults to the largest ``required``
+
+Every problem is reported as :class:`ScenarioError` naming the field, e.g.
+``objects[3].location: [510, 4] is off the 500x200 grid``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from ost_ros.model import DEFAULT_NMAX, AgentSpec, Grid, ObjectSpec, Scenario
+from ost_ros.partition import choose_partition, subareas
+
+TOP_KEYS = ("grid", "partition", "agents", "objects", "nmax")
+
+
+class ScenarioError(ValueError):
+    """An invalid scenario; the message names the offending field."""
+
+
+# ----------------------------------------------------------------------------- building
+
+
+def build_scenario(grid: Grid, objects: list[ObjectSpec] | tuple[ObjectSpec, ...], *,
+                   n_agents: int | None = None, partition: tuple[int, int] | None = None,
+                   agents: list[AgentSpec] | None = None, nmax: int | None = None) -> Scenario:
+    """Assemble and validate a scenario. The team comes from ``agents``, else ``partition``,
+    else ``n_agents`` (with the default partition); default bases are the subareas' sweep starts."""
+    if grid.width < 1 or grid.height < 1:
+        raise ScenarioError(f"grid: size must be positive, got {grid.width}x{grid.height}")
+    if agents is not None:
+        count = len(agents)
+    elif partition is not None:
+        count = partition[0] * partition[1]
+    elif n_agents is not None:
+        count = n_agents
+    else:
+        raise ScenarioError("agents: missing (give an agents list or a partition)")
+    if count < 1:
+        raise ScenarioError("agents: the team needs at least one agent")
+    if partition is None:
+        try:
+            partition = choose_partition(count, grid)
+        except ValueError as exc:
+            raise ScenarioError(f"partition: {exc}") from None
+    if partition[0] < 1 or partition[1] < 1:
+        raise ScenarioError(f"partition: sizes must be positive, got {list(partition)}")
+    if partition[0] * partition[1] != count:
+        raise ScenarioError(f"partition: {partition[0]}x{partition[1]} has "
+                            f"{partition[0] * partition[1]} subareas for {count} agents")
+    try:
+        areas = subareas(grid, partition)
+    except ValueError as exc:
+        raise ScenarioError(f"partition: {exc}") from None
+    if agents is None:
+        agents = [AgentSpec(k, areas[k].start) for k in range(count)]
+    agents = sorted(agents, key=lambda a: a.id)
+    seen: set[int] = set()
+    for k, a in enumerate(agents):
+        if a.id in seen:
+            raise ScenarioError(f"agents[{k}].id: duplicate id {a.id}")
+        seen.add(a.id)
+        if not grid.contains(a.base):
+            raise ScenarioError(f"agents[{k}].base: {list(a.base)} is off the "
+                                f"{grid.width}x{grid.height} grid")
+    objects = sorted(objects, key=lambda o: o.id)
+    largest = max((o.required for o in objects), default=1)
+    nmax = largest if nmax is None else nmax
+    if nmax < 1:
+        raise ScenarioError(f"nmax: must be at least 1, got {nmax}")
+    if nmax > count:
+        raise ScenarioError(f"nmax: {nmax} exceeds the team of {count} agents "
+                            f"(the task cannot be completed)")
+    ids: set[int] = set()
+    for k, o in enumerate(objects):
+        where = f"objects[{k}]"
+        if o.id in ids:
+            raise ScenarioError(f"{where}.id: duplicate id {o.id}")
+        ids.add(o.id)
+        for name in ("location", "destination"):
+            cell = getattr(o, name)
+            if not grid.contains(cell):
+                raise ScenarioError(f"{where}.{name}: {list(cell)} is off the "
+                                    f"{grid.width}x{grid.height} grid")
+        if o.location == o.destination:
+            raise ScenarioError(f"{where}.destination: equals its location {list(o.location)}")
+        if not 1 <= o.required <= nmax:
+            raise ScenarioError(f"{where}.required: {o.required} is outside 1..nmax={nmax}")
+    return Scenario(grid=grid, partition=tuple(partition), agents=tuple(agents),
+                    objects=tuple(objects), nmax=nmax, subareas=areas)
+
+
+def with_team(scenario: Scenario, n_agents: int) -> Scenario:
+    """The same objects with a new team of ``n_agents`` (default partition and bases)."""
+    return build_scenario(scenario.grid, scenario.objects, n_agents=n_agents,
+                          nmax=scenario.nmax)
+
+
+# ----------------------------------------------------------------------------- parsing
+
+
+def _int(value: Any, where: str, minimum: int | None = None) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ScenarioError(f"{where}: expected an integer, got {value!r}")
+    if minimum is not None and value < minimum:
+        raise ScenarioError(f"{where}: must be at least {minimum}, got {value}")
+    return value
+
+
+def _cell(value: Any, where: str) -> tuple[int, int]:
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
+        raise ScenarioError(f"{where}: expected [x, y], got {value!r}")
+    return (_int(value[0], where + "[0]"), _int(value[1], where + "[1]"))
+
+
+def _mapping(value: Any, where: str, allowed: tuple[str, ...], required: tuple[str, ...]) -> dict:
+    if not isinstance(value, dict):
+        raise ScenarioError(f"{where}: expected a mapping, got {type(value).__name__}")
+    for key in value:
+        if key not in allowed:
+            raise ScenarioError(f"{where}: unknown key {key!r} (allowed: {', '.join(allowed)})")
+    for key in required:
+        if key not in value:
+            raise ScenarioError(f"{where}: missing key {key!r}")
+    return value
+
+
+def _list(value: Any, where: str) -> list:
+    if not isinstance(value, list):
+        raise ScenarioError(f"{where}: expected a list, got {type(value).__name__}")
+    return value
+
+
+def scenario_from_dict(data: Any) -> Scenario:
+    """Validate a parsed YAML/JSON document and build the scenario."""
+    if data is None:
+        raise ScenarioError("scenario: the file is empty")
+    data = _mapping(data, "scenario", TOP_KEYS, ("objects",))
+    g = _mapping(data.get("grid", {}), "grid", ("width", "height"), ())
+    grid = Grid(_int(g.get("width", Grid.width), "grid.width", 1),
+                _int(g.get("height", Grid.height), "grid.height", 1))
+    partition = None
+    if "partition" in data:
+        p = data["partition"]
+        if not isinstance(p, (list, tuple)) or len(p) != 2:
+            raise ScenarioError(f"partition: expected [m, n], got {p!r}")
+        partition = (_int(p[0], "partition[0]", 1), _int(p[1], "partition[1]", 1))
+    agents = None
+    if "agents" in data:
+        agents = []
+        for k, a in enumerate(_list(data["agents"], "agents")):
+            a = _mapping(a, f"agents[{k}]", ("id", "base"), ("id",))
+            aid = _int(a["id"], f"agents[{k}].id", 0)
+            base = _cell(a["base"], f"agents[{k}].base") if "base" in a else None
+            agents.append((aid, base))
+    objects = []
+    for k, o in enumerate(_list(data["objects"], "objects")):
+        o = _mapping(o, f"objects[{k}]", ("id", "location", "destination", "required"),
+                     ("id", "location", "destination", "required"))
+        objects.append(ObjectSpec(_int(o["id"], f"objects[{k}].id", 0),
+                                  _cell(o["location"], f"objects[{k}].location"),
+                                  _cell(o["destination"], f"objects[{k}].destination"),
+                                  _int(o["required"], f"objects[{k}].required", 1)))
+    nmax = _int(data["nmax"], "nmax", 1) if "nmax" in data else None
+    if agents is not None and any(base is None for _, base in agents):
+        # Agents without a base get their subarea's start cell: needs the partition first.
+        if not agents:
+            raise ScenarioError("agents: the team needs at least one agent")
+        default = build_scenario(grid, [], n_agents=len(agents), partition=partition)
+        order = sorted(range(len(agents)), key=lambda k: agents[k][0])
+        bases = {agents[k][0]: default.subareas[rank].start for rank, k in enumerate(order)}
+        agents = [(aid, base if base is not None else bases[aid]) for aid, base in agents]
+    team = None if agents is None else [AgentSpec(aid, base) for aid, base in agents]
+    return build_scenario(grid, objects, partition=partition, agents=team, nmax=nmax)
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file (YAML or JSON)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ScenarioError(f"{path}: no such file") from None
+    except (IsADirectoryError, PermissionError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f"{path}: cannot read ({exc.__class__.__name__})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or "malformed YAML"
+        raise ScenarioError(f"{path}: invalid YAML{where}: {problem}") from None
+    try:
+        return scenario_from_dict(data)
+    except ScenarioError as exc:
+        raise ScenarioError(f"{path}: {exc}") from None
+
+
+# ----------------------------------------------------------------------------- writing
+
+
+def scenario_to_dict(scenario: Scenario) -> dict:
+    return {
+        "grid": {"width": scenario.grid.width, "height": scenario.grid.height},
+        "partition": list(scenario.partition),
+        "agents": [{"id": a.id, "base": list(a.base)} for a in scenario.agents],
+        "objects": [{"id": o.id, "location": list(o.location), "destination": list(o.destination),
+                     "required": o.required} for o in scenario.objects],
+        "nmax": scenario.nmax,
+    }
+
+
+def dump_scenario(scenario: Scenario) -> str:
+    """YAML text with one line per agent and per object (diff-friendly, readable)."""
+    d = scenario_to_dict(scenario)
+
+    def flow(item: dict) -> str:
+        return yaml.safe_dump(item, default_flow_style=True, sort_keys=False, width=1 << 16).strip()
+
+    lines = [f"grid: {flow(d['grid'])}", f"partition: {flow(d['partition'])}", "agents:"]
+    lines += [f"  - {flow(a)}" for a in d["agents"]]
+    lines.append("objects:" if d["objects"] else "objects: []")
+    lines += [f"  - {flow(o)}" for o in d["objects"]]
+    lines.append(f"nmax: {d['nmax']}")
+    return "\n".join(lines) + "\n"
+
+
+# ----------------------------------------------------------------------------- generation
+
+
+def generate_objects(n_objects: int, seed: int, grid: Grid = Grid(),
+                     nmax: int = DEFAULT_NMAX) -> list[ObjectSpec]:
+    """The paper's random object set: distinct uniform locations, uniform destinations (never the
+    object's own cell), n_i uniform in 1..nmax; sorted by (x, y) of location, id = that rank."""
+    if n_objects < 0:
+        raise ScenarioError(f"objects: count must be non-negative, got {n_objects}")
+    if n_objects > grid.cells:
+        raise ScenarioError(f"objects: {n_objects} distinct locations do not fit a "
+                            f"{grid.width}x{grid.height} grid")
+    if nmax < 1:
+        raise ScenarioError(f"nmax: must be at least 1, got {nmax}")
+    if grid.cells < 2 and n_objects:
+        raise ScenarioError("grid: a 1-cell grid has no destination distinct from a location")
+    rng = np.random.default_rng(seed)
+    loc = rng.choice(grid.cells, size=n_objects, replace=False)
+    dest = rng.integers(0, grid.cells, size=n_objects)
+    while np.any(same := dest == loc):
+        dest[same] = rng.integers(0, grid.cells, size=int(same.sum()))
+    req = rng.integers(1, nmax + 1, size=n_objects)
+    lx, ly = loc % grid.width, loc // grid.width
+    order = np.lexsort((ly, lx))  # sort by x, then y
+    return [ObjectSpec(rank, (int(lx[i]), int(ly[i])),
+                       (int(dest[i] % grid.width), int(dest[i] // grid.width)), int(req[i]))
+            for rank, i in enumerate(order)]
+
+
+def generate_scenario(n_agents: int, n_objects: int, seed: int, grid: Grid = Grid(),
+                      nmax: int = DEFAULT_NMAX) -> Scenario:
+    """A random scenario as in the paper's §5.1; the objects depend on the seed only, not on N."""
+    objects = generate_objects(n_objects, seed, grid, nmax)
+    return build_scenario(grid, objects, n_agents=n_agents, nmax=nmax)

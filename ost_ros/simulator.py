@@ -1,0 +1,73 @@
+"""In-process reference simulator: the world and N agents stepped in lockstep, messages of a step
+delivered to everyone within that step (the same semantics the ROS lockstep barrier provides).
+
+Step t: every agent acts on its observation (search, motion) → all messages of the step are
+exchanged → every agent's comm module runs → the world applies all actions at once → t+1.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+from ost_ros.agent import CcpAgent
+from ost_ros.coordination import CoordinationPolicy
+from ost_ros.model import Scenario
+from ost_ros.result import RunResult
+from ost_ros.team import TeamInfo
+from ost_ros.world import World
+
+PROTOCOLS = ("ccp",)
+
+
+def step_limit(scenario: Scenario) -> int:
+    """A bound no correct run exceeds: the longest search, then every object handled one after
+    another (reach + carry ≤ 2·(W+H) each), then the way home. Beyond it, the run is deadlocked."""
+    team = TeamInfo.from_scenario(scenario)
+    span = scenario.grid.width + scenario.grid.height
+    return int(max(s.length for s in team.sweeps)) + 2 + (2 * len(scenario.objects) + 1) * span
+
+
+def make_agents(scenario: Scenario, protocol: str, policy: CoordinationPolicy) -> list:
+    if protocol not in PROTOCOLS:
+        raise ValueError(f"unknown protocol {protocol!r} (choose from {', '.join(PROTOCOLS)})")
+    team = TeamInfo.from_scenario(scenario)
+    return [CcpAgent(a.id, team, policy) for a in scenario.agents]
+
+
+def simulate(scenario: Scenario, protocol: str = "ccp", policy: CoordinationPolicy | None = None,
+             max_steps: int | None = None,
+             on_step: Callable[[World, list], None] | None = None) -> RunResult:
+    """Run a scenario to completion (or to the step limit) and return the result.
+
+    ``on_step(world, actions)`` is called after each step (progress display, tracing, tests).
+    """
+    policy = policy or CoordinationPolicy()
+    agents = make_agents(scenario, protocol, policy)
+    world = World(scenario)
+    limit = max_steps if max_steps is not None else step_limit(scenario)
+    messages = 0
+    while not world.done and world.t < limit:
+        actions = [ag.act(world.observe(ag.id)) for ag in agents]
+        inbox = [m for ag in agents for m in ag.outbox()]
+        messages += len(inbox)
+        for ag in agents:
+            ag.communicate(world.t, inbox)
+        world.apply(actions)
+        if on_step is not None:
+            on_step(world, actions)
+    return finish_result(world, agents, protocol, policy, messages)
+
+
+def finish_result(world: World, agents: list, protocol: str, policy: CoordinationPolicy,
+                  messages: int) -> RunResult:
+    """The world's record plus what the agents know (prediction, agreement, warnings)."""
+    first = agents[0].comm
+    agreement = all(ag.comm.schedule == first.schedule for ag in agents)
+    warnings = [f"agent {ag.id}: {w}" for ag in agents for w in ag.warnings]
+    result = world.result(protocol=protocol, trigger=policy.name,
+                          predicted_makespan=first.predicted_makespan,
+                          coordinations=first.coordinations, messages=messages,
+                          agreement=agreement, warnings=warnings, found=dict(first.found_at),
+                          schedule=list(first.schedule))
+    if not result.completed:
+        result.error = f"not finished after {world.t} steps (deadlock or step limit)"
+    return result

@@ -1,0 +1,53 @@
+"""What every agent knows before the run: the area, the team, the partition and everyone's sweep.
+
+This is configuration, not ground truth about objects: agents learn objects only by sensing or by
+messages. From it every agent can compute when and where each peer's search ends, which CCP
+needs for a peer's cost CA_j while that peer is still searching.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ost_ros.model import Cell, Grid, Scenario, Subarea
+from ost_ros.search import SweepSummary
+
+
+@dataclass(frozen=True)
+class TeamInfo:
+    grid: Grid
+    agent_ids: tuple[int, ...]          # ascending: the tie-break order of the protocol
+    bases: tuple[Cell, ...]
+    areas: tuple[Subarea, ...]
+    sweeps: tuple[SweepSummary, ...]
+
+    @classmethod
+    def from_scenario(cls, scenario: Scenario) -> "TeamInfo":
+        agents = scenario.agents  # sorted by id; agents[k] searches subareas[k]
+        return cls(
+            grid=scenario.grid,
+            agent_ids=tuple(a.id for a in agents),
+            bases=tuple(a.base for a in agents),
+            areas=scenario.subareas,
+            sweeps=tuple(SweepSummary.of(area, a.base) for area, a in zip(scenario.subareas, agents)),
+        )
+
+    @property
+    def size(self) -> int:
+        return len(self.agent_ids)
+
+    def index(self, agent_id: int) -> int:
+        return self.agent_ids.index(agent_id)
+
+    def sweep_lengths(self) -> np.ndarray:
+        return np.array([s.length for s in self.sweeps], dtype=np.int64)
+
+    def sweep_ends(self) -> np.ndarray:
+        return np.array([s.end for s in self.sweeps], dtype=np.int64).reshape(-1, 2)
+
+    def searched_fraction(self, t: int) -> float:
+        """Share of the whole team's sweep done by time ``t`` (same for every agent)."""
+        lengths = self.sweep_lengths()
+        total = int(lengths.sum())
+        return 1.0 if total == 0 else float(np.minimum(lengths, max(t, 0)).sum()) / total

@@ -1,0 +1,170 @@
+"""Ground truth of a run: where agents and objects are, what each agent senses, which actions
+are legal. The in-process simulator and the ROS world node both drive this class.
+
+Actions of one step are applied simultaneously. Rules: one 4-connected cell per step on the grid;
+an object moves only when at least ``required`` agents standing on its cell carry it in the same
+direction in the same step (fewer carriers just hold it: they wait for their group); it is
+delivered the moment it reaches its destination. Illegal actions (off the grid, not a unit move,
+carrying from another cell, carriers pulling different ways, ...) are rejected with a reason (the
+agent stays where it is) and counted in the result.
+"""
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass, field
+
+from ost_msgs_py.messages import Action, ActionKind, Observation
+from ost_ros.model import Cell, Scenario
+from ost_ros.motion import DIRECTIONS, apply
+from ost_ros.result import AgentRecord, ObjectRecord, RunResult
+
+FINISH_STATE = "FINISH"
+_SENSE = tuple((dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1))
+
+
+@dataclass
+class _Obj:
+    spec: object
+    at: Cell
+    start: int | None = None
+    carriers: tuple[int, ...] = ()
+    delivered: int | None = None
+
+
+@dataclass
+class World:
+    scenario: Scenario
+    t: int = 0
+    rejections: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.positions: dict[int, Cell] = {a.id: a.base for a in self.scenario.agents}
+        self.bases: dict[int, Cell] = dict(self.positions)
+        self.objects: dict[int, _Obj] = {o.id: _Obj(o, o.location) for o in self.scenario.objects}
+        self._at: dict[Cell, set[int]] = defaultdict(set)   # undelivered objects by cell
+        for o in self.objects.values():
+            self._at[o.at].add(o.spec.id)
+        self.records: dict[int, AgentRecord] = {a.id: AgentRecord(a.id) for a in self.scenario.agents}
+
+    # ------------------------------------------------------------------ sensing
+
+    def observe(self, agent_id: int) -> Observation:
+        pos = self.positions[agent_id]
+        sensed = []
+        for dx, dy in _SENSE:
+            ids = self._at.get((pos[0] + dx, pos[1] + dy))
+            if ids:
+                sensed.extend(self.objects[i].spec for i in sorted(ids))
+        return Observation(agent_id, self.t, pos, tuple(sensed))
+
+    # ------------------------------------------------------------------ acting
+
+    def _reject(self, action: Action, why: str) -> None:
+        self.rejections.append(f"t={self.t} agent {action.agent}: {action.kind.value} rejected: {why}")
+
+    def apply(self, actions: list[Action]) -> None:
+        """Apply one step's actions (one per agent) and advance the clock."""
+        moves: dict[int, Cell] = {}
+        carries: dict[int, list[Action]] = defaultdict(list)
+        acted: set[int] = set()
+        for act in actions:
+            rec = self.records.get(act.agent)
+            if rec is None:
+                self.rejections.append(f"t={self.t}: action from unknown agent {act.agent}")
+                continue
+            if act.agent in acted:
+                self._reject(act, "second action in one step")
+                continue
+            acted.add(act.agent)
+            if act.t != self.t:
+                self._reject(act, f"stamped for step {act.t}, world is at step {self.t}")
+                continue
+            pos = self.positions[act.agent]
+            if act.state == FINISH_STATE and rec.finished is None:
+                if pos == self.bases[act.agent]:
+                    rec.finished = self.t
+                else:
+                    self._reject(act, f"FINISH at {pos}, away from base {self.bases[act.agent]}")
+            if act.kind is ActionKind.WAIT:
+                if rec.finished is None:
+                    rec.idle += 1
+                continue
+            if tuple(act.direction) not in DIRECTIONS:
+                self._reject(act, f"direction {act.direction} is not one 4-connected cell")
+                continue
+            target = apply(pos, act.direction)
+            if not self.scenario.grid.contains(target):
+                self._reject(act, f"{target} is off the grid")
+                continue
+            if act.kind is ActionKind.MOVE:
+                moves[act.agent] = target
+                if act.state == "SEARCHING":
+                    rec.search += 1
+                else:
+                    rec.travel += 1
+            else:
+                carries[act.object].append(act)
+        for oid, group in carries.items():
+            self._carry(oid, group, moves)
+        for agent, target in moves.items():
+            self.positions[agent] = target
+        self.t += 1
+
+    def _carry(self, oid: int, group: list[Action], moves: dict[int, Cell]) -> None:
+        obj = self.objects.get(oid)
+        if obj is None or obj.delivered is not None:
+            for act in group:
+                self._reject(act, f"object {oid} does not exist or is delivered")
+            return
+        here = [a for a in group if self.positions[a.agent] == obj.at]
+        for act in group:
+            if self.positions[act.agent] != obj.at:
+                self._reject(act, f"not at object {oid} ({obj.at})")
+        directions = {tuple(a.direction) for a in here}
+        if len(directions) > 1:
+            for act in here:
+                self._reject(act, f"carriers of object {oid} pull in {len(directions)} directions")
+            return
+        if len(here) < obj.spec.required:
+            # Not an error: the agents hold the object and wait for the rest of the group.
+            for act in here:
+                self.records[act.agent].idle += 1
+            return
+        target = apply(obj.at, here[0].direction)
+        if obj.start is None:
+            obj.start = self.t
+            obj.carriers = tuple(sorted(a.agent for a in here))
+        self._at[obj.at].discard(oid)
+        obj.at = target
+        for act in here:
+            moves[act.agent] = target
+            self.records[act.agent].carry += 1
+        if target == obj.spec.destination:
+            obj.delivered = self.t + 1
+        else:
+            self._at[target].add(oid)
+
+    # ------------------------------------------------------------------ ending
+
+    @property
+    def done(self) -> bool:
+        return (all(o.delivered is not None for o in self.objects.values())
+                and all(r.finished is not None for r in self.records.values()))
+
+    def result(self, **extra) -> RunResult:
+        agents = [self.records[a.id] for a in self.scenario.agents]
+        objects = [ObjectRecord(o.spec.id, o.carriers, o.start, o.delivered)
+                   for o in sorted(self.objects.values(), key=lambda o: o.spec.id)]
+        finished = [r.finished for r in agents]
+        delivered = [o.delivered for o in objects]
+        complete = self.done
+        return RunResult(
+            makespan=max(finished) if complete and finished else None,
+            last_delivery=max((d for d in delivered if d is not None), default=0),
+            completed=complete,
+            steps=self.t,
+            agents=agents,
+            objects=objects,
+            rejections=list(self.rejections),
+            **extra,
+        )

@@ -1,0 +1,132 @@
+"""The ``ost`` command as a user runs it: real subprocesses, exit codes, one-line errors."""
+import json
+import subprocess
+import sys
+
+import pytest
+
+OST = [sys.executable, "-m", "ost_ros"]
+
+
+def ost(*args, stdin=None):
+    return subprocess.run(OST + [str(a) for a in args], capture_output=True, text=True,
+                          input=stdin, timeout=120)
+
+
+@pytest.fixture(scope="module")
+def scenario(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cli") / "s.yaml"
+    r = ost("generate", "--agents", 4, "--objects", 6, "--seed", 1, "--width", 40, "--height", 20,
+            "--nmax", 4, "-o", path)
+    assert r.returncode == 0, r.stderr
+    return path
+
+
+def test_help_lists_verbs():
+    r = ost("--help")
+    assert r.returncode == 0
+    for verb in ("generate", "sim", "schedule"):
+        assert verb in r.stdout
+    for verb in ("generate", "sim", "schedule"):
+        assert ost(verb, "--help").returncode == 0
+
+
+def test_generate_is_reproducible(scenario):
+    again = ost("generate", "--agents", 4, "--objects", 6, "--seed", 1, "--width", 40,
+                "--height", 20, "--nmax", 4)
+    assert again.stdout == scenario.read_text()
+
+
+def test_sim_json(scenario):
+    r = ost("sim", scenario, "--ci", 2, "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["completed"] and out["makespan"] == out["predicted_makespan"]
+    assert {"makespan", "last_delivery", "agents", "objects"} <= set(out)
+    assert set(out["agents"][0]) >= {"id", "cost", "idle", "carry"}
+    assert set(out["objects"][0]) >= {"id", "agents", "start", "delivered"}
+    assert max(a["cost"] for a in out["agents"]) == out["makespan"]
+    assert max(o["delivered"] for o in out["objects"]) == out["last_delivery"]
+    assert r.stdout == ost("sim", scenario, "--ci", 2, "--json").stdout   # deterministic
+
+
+def test_sim_text_and_team_override(scenario):
+    r = ost("sim", scenario, "--agents", 8)
+    assert r.returncode == 0, r.stderr
+    assert "makespan" in r.stdout and "completed" in r.stdout
+    assert len([ln for ln in r.stdout.splitlines() if ln.strip()[:1].isdigit()]) == 8
+
+
+def test_schedule(tmp_path):
+    state = {"agents": [{"id": 0, "cost": 0, "location": [0, 0]},
+                        {"id": 1, "cost": 5, "location": [10, 0]}],
+             "objects": [{"id": 0, "location": [2, 0], "destination": [2, 3], "required": 1},
+                         {"id": 1, "location": [8, 0], "destination": [8, 1], "required": 2}]}
+    path = tmp_path / "state.json"
+    path.write_text(json.dumps(state))
+    r = ost("schedule", path, "--json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout) == {
+        "schedule": [{"object": 0, "agents": [0], "start": 2, "finish": 5},
+                     {"object": 1, "agents": [0, 1], "start": 14, "finish": 15}],
+        "agents": [{"id": 0, "cost": 15, "location": [8, 1]}, {"id": 1, "cost": 15, "location": [8, 1]}]}
+    assert ost("schedule", "-", stdin=json.dumps(state)).returncode == 0
+
+
+BAD_YAML = {
+    "malformed.yaml": ("grid: {width: 3\nobjects: [", "invalid YAML at line"),
+    "unknown.yaml": ("grid: {width: 10, height: 5}\nagents: [{id: 0}]\nobjects: []\nspeed: 3\n",
+                     "unknown key 'speed'"),
+    "offgrid.yaml": ("grid: {width: 10, height: 5}\nagents: [{id: 0}]\n"
+                     "objects: [{id: 0, location: [12, 1], destination: [1, 1], required: 1}]\n",
+                     "objects[0].location: [12, 1] is off the 10x5 grid"),
+    "toomany.yaml": ("grid: {width: 10, height: 5}\nagents: [{id: 0}, {id: 1}]\n"
+                     "objects: [{id: 0, location: [2, 1], destination: [1, 1], required: 3}]\n",
+                     "nmax: 3 exceeds the team of 2 agents"),
+    "negative.yaml": ("grid: {width: -10, height: 5}\nagents: [{id: 0}]\nobjects: []\n",
+                      "grid.width: must be at least 1, got -10"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD_YAML))
+def test_bad_scenario_one_line_exit_2(tmp_path, name):
+    text, needle = BAD_YAML[name]
+    path = tmp_path / name
+    path.write_text(text)
+    r = ost("sim", path)
+    assert r.returncode == 2
+    assert needle in r.stderr and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["generate", "--agents", 10, "--objects", 5, "--seed", 1, "--width", -5], "--width"),
+    (["generate", "--agents", 4, "--objects", 5, "--seed", 1], "nmax: 10 exceeds the team of 4"),
+    (["generate", "--agents", 10, "--objects", "many", "--seed", 1], "--objects"),
+    (["sim", "missing.yaml"], "missing.yaml: no such file"),
+    (["sim", "x.yaml", "--ci", 0], "--ci"),
+    (["sim", "x.yaml", "--ci", 2, "--interval", 5], "not allowed with"),
+    (["sim", "x.yaml", "--protocol", "xyz"], "--protocol"),
+    (["schedule", "missing.json"], "missing.json: no such file"),
+    (["frobnicate"], "invalid choice"),
+])
+def test_bad_flags_one_line_exit_2(args, needle):
+    r = ost(*args)
+    assert r.returncode == 2
+    assert needle in r.stderr and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("state,needle", [
+    ("{", "invalid JSON"),
+    ('{"agents": [], "objects": []}', "at least one agent"),
+    ('{"agents": [{"id": 0, "cost": 0, "location": [0, 0]}], "objects": '
+     '[{"id": 0, "location": [1, 1], "destination": [2, 2], "required": 2}]}', "exceeds the team"),
+    ('{"agents": [{"id": 0, "cost": -1, "location": [0, 0]}], "objects": []}', "agents[0].cost"),
+    ('{"agents": [{"id": 0, "cost": 0, "where": [0, 0]}], "objects": []}', "unknown key 'where'"),
+])
+def test_bad_state_one_line_exit_2(state, needle):
+    r = ost("schedule", "-", stdin=state)
+    assert r.returncode == 2
+    assert needle in r.stderr and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
