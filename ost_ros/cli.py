@@ -24,7 +24,6 @@ class OneLineParser(argparse.ArgumentParser):
 
 
 # Modules that add subcommands, in the order they appear in ``ost --help``.
-# Each may be missing its optional dependencies; it then is left out with a note in --help.
 VERB_MODULES: tuple[str, ...] = (
     "ost_ros.commands.core",
     "ost_ros.negotiation.cli",
@@ -41,9 +40,9 @@ def build_parser() -> argparse.ArgumentParser:
         try:
             module = importlib.import_module(name)
         except ModuleNotFoundError as exc:
-            # Only tolerate the verb module itself being absent (a partial install), not a
-            # missing dependency inside it: that is a real error and should show.
-            if exc.name != name:
+            # Tolerate only the verb module (or its package) being absent — a partial checkout —
+            # not a missing dependency inside it: that is a real error and must show.
+            if not exc.name or not name.startswith(exc.name):
                 raise
             continue
         module.register(sub)
