@@ -23,11 +23,13 @@ import yaml
 
 from ost_ros.model import DEFAULT_NMAX, AgentSpec, Grid, ObjectSpec, Scenario
 from ost_ros.partition import choose_partition, subareas
+from ost_ros import validate as v
+from ost_ros.validate import FieldError
 
 TOP_KEYS = ("grid", "partition", "agents", "objects", "nmax")
 
 
-class ScenarioError(ValueError):
+class ScenarioError(FieldError):
     """An invalid scenario; the message names the offending field."""
 
 
@@ -112,69 +114,46 @@ def with_team(scenario: Scenario, n_agents: int) -> Scenario:
 # ----------------------------------------------------------------------------- parsing
 
 
-def _int(value: Any, where: str, minimum: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise ScenarioError(f"{where}: expected an integer, got {value!r}")
-    if minimum is not None and value < minimum:
-        raise ScenarioError(f"{where}: must be at least {minimum}, got {value}")
-    return value
-
-
-def _cell(value: Any, where: str) -> tuple[int, int]:
-    if not isinstance(value, (list, tuple)) or len(value) != 2:
-        raise ScenarioError(f"{where}: expected [x, y], got {value!r}")
-    return (_int(value[0], where + "[0]"), _int(value[1], where + "[1]"))
-
-
-def _mapping(value: Any, where: str, allowed: tuple[str, ...], required: tuple[str, ...]) -> dict:
-    if not isinstance(value, dict):
-        raise ScenarioError(f"{where}: expected a mapping, got {type(value).__name__}")
-    for key in value:
-        if key not in allowed:
-            raise ScenarioError(f"{where}: unknown key {key!r} (allowed: {', '.join(allowed)})")
-    for key in required:
-        if key not in value:
-            raise ScenarioError(f"{where}: missing key {key!r}")
-    return value
-
-
-def _list(value: Any, where: str) -> list:
-    if not isinstance(value, list):
-        raise ScenarioError(f"{where}: expected a list, got {type(value).__name__}")
-    return value
-
-
 def scenario_from_dict(data: Any) -> Scenario:
     """Validate a parsed YAML/JSON document and build the scenario."""
+    try:
+        return _scenario_from_dict(data)
+    except ScenarioError:
+        raise
+    except FieldError as exc:
+        raise ScenarioError(str(exc)) from None
+
+
+def _scenario_from_dict(data: Any) -> Scenario:
     if data is None:
         raise ScenarioError("scenario: the file is empty")
-    data = _mapping(data, "scenario", TOP_KEYS, ("objects",))
-    g = _mapping(data.get("grid", {}), "grid", ("width", "height"), ())
-    grid = Grid(_int(g.get("width", Grid.width), "grid.width", 1),
-                _int(g.get("height", Grid.height), "grid.height", 1))
+    data = v.mapping(data, "scenario", TOP_KEYS, ("objects",))
+    g = v.mapping(data.get("grid", {}), "grid", ("width", "height"))
+    grid = Grid(v.integer(g.get("width", Grid.width), "grid.width", 1),
+                v.integer(g.get("height", Grid.height), "grid.height", 1))
     partition = None
     if "partition" in data:
         p = data["partition"]
         if not isinstance(p, (list, tuple)) or len(p) != 2:
             raise ScenarioError(f"partition: expected [m, n], got {p!r}")
-        partition = (_int(p[0], "partition[0]", 1), _int(p[1], "partition[1]", 1))
+        partition = (v.integer(p[0], "partition[0]", 1), v.integer(p[1], "partition[1]", 1))
     agents = None
     if "agents" in data:
         agents = []
-        for k, a in enumerate(_list(data["agents"], "agents")):
-            a = _mapping(a, f"agents[{k}]", ("id", "base"), ("id",))
-            aid = _int(a["id"], f"agents[{k}].id", 0)
-            base = _cell(a["base"], f"agents[{k}].base") if "base" in a else None
+        for k, a in enumerate(v.listing(data["agents"], "agents")):
+            a = v.mapping(a, f"agents[{k}]", ("id", "base"), ("id",))
+            aid = v.integer(a["id"], f"agents[{k}].id", 0)
+            base = v.cell(a["base"], f"agents[{k}].base") if "base" in a else None
             agents.append((aid, base))
     objects = []
-    for k, o in enumerate(_list(data["objects"], "objects")):
-        o = _mapping(o, f"objects[{k}]", ("id", "location", "destination", "required"),
+    for k, o in enumerate(v.listing(data["objects"], "objects")):
+        o = v.mapping(o, f"objects[{k}]", ("id", "location", "destination", "required"),
                      ("id", "location", "destination", "required"))
-        objects.append(ObjectSpec(_int(o["id"], f"objects[{k}].id", 0),
-                                  _cell(o["location"], f"objects[{k}].location"),
-                                  _cell(o["destination"], f"objects[{k}].destination"),
-                                  _int(o["required"], f"objects[{k}].required", 1)))
-    nmax = _int(data["nmax"], "nmax", 1) if "nmax" in data else None
+        objects.append(ObjectSpec(v.integer(o["id"], f"objects[{k}].id", 0),
+                                  v.cell(o["location"], f"objects[{k}].location"),
+                                  v.cell(o["destination"], f"objects[{k}].destination"),
+                                  v.integer(o["required"], f"objects[{k}].required", 1)))
+    nmax = v.integer(data["nmax"], "nmax", 1) if "nmax" in data else None
     if agents is not None and any(base is None for _, base in agents):
         # Agents without a base get their subarea's start cell: needs the partition first.
         if not agents:

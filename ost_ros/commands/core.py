@@ -7,32 +7,32 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ost_ros import validate as v
 from ost_ros.errors import UsageError
 from ost_ros.coordination import CoordinationPolicy, coordinate
 from ost_ros.model import DEFAULT_HEIGHT, DEFAULT_NMAX, DEFAULT_WIDTH, Grid, ObjectSpec
 from ost_ros.scenario import (ScenarioError, dump_scenario, generate_scenario, load_scenario,
                               with_team)
 from ost_ros.simulator import PROTOCOLS, simulate
+from ost_ros.validate import FieldError
+
+OBJECT_KEYS = ("id", "location", "destination", "required")
 
 
-def _positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid integer {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
+def _at_least(minimum: int):
+    """argparse type: an integer >= minimum."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"invalid integer {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
+        return value
+    return parse
 
 
-def _natural(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid integer {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be non-negative, got {value}")
-    return value
+_positive, _natural = _at_least(1), _at_least(0)
 
 
 def _fraction(text: str) -> float:
@@ -153,61 +153,32 @@ def cmd_sim(args: argparse.Namespace) -> int:
 # ----------------------------------------------------------------------------- schedule
 
 
-def _cell(value: Any, where: str) -> tuple[int, int]:
-    if (not isinstance(value, (list, tuple)) or len(value) != 2
-            or not all(isinstance(v, int) and not isinstance(v, bool) for v in value)):
-        raise UsageError(f"{where}: expected [x, y] integers, got {value!r}")
-    return (value[0], value[1])
-
-
-def _get_int(d: dict, key: str, where: str, minimum: int = 0) -> int:
-    v = d.get(key)
-    if isinstance(v, bool) or not isinstance(v, int):
-        raise UsageError(f"{where}.{key}: expected an integer, got {v!r}")
-    if v < minimum:
-        raise UsageError(f"{where}.{key}: must be at least {minimum}, got {v}")
-    return v
-
-
-def _check_keys(d: Any, where: str, keys: tuple[str, ...]) -> dict:
-    if not isinstance(d, dict):
-        raise UsageError(f"{where}: expected an object, got {type(d).__name__}")
-    for k in d:
-        if k not in keys:
-            raise UsageError(f"{where}: unknown key {k!r} (allowed: {', '.join(keys)})")
-    for k in keys:
-        if k not in d:
-            raise UsageError(f"{where}: missing key {k!r}")
-    return d
-
-
 def parse_state(data: Any) -> tuple[list[int], list[int], list[tuple[int, int]], list[ObjectSpec]]:
-    data = _check_keys(data, "state", ("agents", "objects"))
-    for key in ("agents", "objects"):
-        if not isinstance(data[key], list):
-            raise UsageError(f"{key}: expected a list")
+    """Validate a coordination state document; returns ids, costs, locations (sorted by id), objects."""
+    data = v.mapping(data, "state", ("agents", "objects"), ("agents", "objects"))
     agents = []
-    for k, a in enumerate(data["agents"]):
-        a = _check_keys(a, f"agents[{k}]", ("id", "cost", "location"))
-        agents.append((_get_int(a, "id", f"agents[{k}]"), _get_int(a, "cost", f"agents[{k}]"),
-                       _cell(a["location"], f"agents[{k}].location")))
+    for k, a in enumerate(v.listing(data["agents"], "agents")):
+        a = v.mapping(a, f"agents[{k}]", ("id", "cost", "location"), ("id", "cost", "location"))
+        agents.append((v.integer(a["id"], f"agents[{k}].id", 0),
+                       v.integer(a["cost"], f"agents[{k}].cost", 0),
+                       v.cell(a["location"], f"agents[{k}].location")))
     if not agents:
-        raise UsageError("agents: the team needs at least one agent")
+        raise FieldError("agents: the team needs at least one agent")
     agents.sort()
     for (x, _, _), (y, _, _) in zip(agents, agents[1:]):
         if x == y:
-            raise UsageError(f"agents: duplicate id {x}")
+            raise FieldError(f"agents: duplicate id {x}")
     objects, seen = [], set()
-    for k, o in enumerate(data["objects"]):
-        o = _check_keys(o, f"objects[{k}]", ("id", "location", "destination", "required"))
-        obj = ObjectSpec(_get_int(o, "id", f"objects[{k}]"), _cell(o["location"], f"objects[{k}].location"),
-                         _cell(o["destination"], f"objects[{k}].destination"),
-                         _get_int(o, "required", f"objects[{k}]", 1))
+    for k, o in enumerate(v.listing(data["objects"], "objects")):
+        where = f"objects[{k}]"
+        o = v.mapping(o, where, OBJECT_KEYS, OBJECT_KEYS)
+        obj = ObjectSpec(v.integer(o["id"], where + ".id", 0), v.cell(o["location"], where + ".location"),
+                         v.cell(o["destination"], where + ".destination"),
+                         v.integer(o["required"], where + ".required", 1))
         if obj.id in seen:
-            raise UsageError(f"objects[{k}].id: duplicate id {obj.id}")
+            raise FieldError(f"{where}.id: duplicate id {obj.id}")
         if obj.required > len(agents):
-            raise UsageError(f"objects[{k}].required: {obj.required} exceeds the team of "
-                             f"{len(agents)} agents")
+            raise FieldError(f"{where}.required: {obj.required} exceeds the team of {len(agents)} agents")
         seen.add(obj.id)
         objects.append(obj)
     return [a[0] for a in agents], [a[1] for a in agents], [a[2] for a in agents], objects
@@ -224,7 +195,10 @@ def cmd_schedule(args: argparse.Namespace) -> int:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise UsageError(f"{args.state}: invalid JSON at line {exc.lineno}: {exc.msg}") from None
-    ids, cost, loc, objects = parse_state(data)
+    try:
+        ids, cost, loc, objects = parse_state(data)
+    except FieldError as exc:
+        raise UsageError(str(exc)) from None
     result = coordinate(ids, cost, loc, objects)
     out = {
         "schedule": [{"object": a.object, "agents": list(a.agents), "start": a.start,
