@@ -63,9 +63,17 @@ if [ ! -x "$venv/bin/python" ] || ! is_py312 "$venv/bin/python"; then
   "$py" -m venv "$venv"
 fi
 say "installing pinned dependencies (first run: about a minute)"
-"$venv/bin/python" -m pip install -q --disable-pip-version-check --upgrade "pip==26.3" >&2
-"$venv/bin/python" -m pip install -q --disable-pip-version-check -r "$lock" >&2
-"$venv/bin/python" -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e "$repo" >&2
+log="$venv/setup.log"
+pip_install() {  # pip's chatter goes to the log; shown only when pip fails
+  if ! "$venv/bin/python" -m pip install -q --disable-pip-version-check "$@" >>"$log" 2>&1; then
+    tail -n 30 "$log" >&2
+    die "pip install $* failed (full log: $log)"
+  fi
+}
+: > "$log"
+pip_install --upgrade "pip==26.3"
+pip_install -r "$lock"
+pip_install --no-deps --no-build-isolation -e "$repo"
 echo "$want" > "$venv/.ost-stamp"
 say "ready: $venv (run: $venv/bin/ost --help)"
 echo "$venv"
