@@ -81,6 +81,7 @@ def register(sub) -> None:
                    help="replace the scenario's team by N agents (default partition and bases)")
     p.add_argument("--max-steps", type=_positive, help="stop after this many steps")
     p.add_argument("--json", action="store_true", help="print the full result as JSON")
+    p.add_argument("--plot", metavar="PNG", help="also draw the map and every agent's timeline")
     p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                    help="progress bar on stderr (default: when stderr is a terminal)")
 
@@ -126,23 +127,39 @@ def cmd_sim(args: argparse.Namespace) -> int:
     policy = CoordinationPolicy(ci=args.ci, interval=args.interval, area_fraction=args.area_fraction)
     show = sys.stderr.isatty() if args.progress is None else args.progress
     bar = None
-    on_step = None
+    hooks = []
+    if args.plot:
+        from ost_ros.plot import Timeline
+        timeline = Timeline()
+        hooks.append(timeline)
     if show:
         from tqdm import tqdm
         total = len(scenario.objects)
         bar = tqdm(total=total, desc="delivered", unit="obj", file=sys.stderr, leave=False)
 
-        def on_step(world, _actions):
+        def progress(world, _actions):
             done = sum(o.delivered is not None for o in world.objects.values())
             if done != bar.n:
                 bar.update(done - bar.n)
             if world.t % 500 == 0:
                 bar.set_postfix(step=world.t, refresh=False)
+        hooks.append(progress)
+
+    def on_step(world, actions):
+        for hook in hooks:
+            hook(world, actions)
     try:
-        result = simulate(scenario, args.protocol, policy, max_steps=args.max_steps, on_step=on_step)
+        result = simulate(scenario, args.protocol, policy, max_steps=args.max_steps,
+                          on_step=on_step if hooks else None)
     finally:
         if bar is not None:
             bar.close()
+    if args.plot:
+        from ost_ros.plot import plot_run
+        try:
+            plot_run(scenario, result, timeline, args.plot)
+        except OSError as exc:
+            raise UsageError(f"{args.plot}: cannot write ({exc.strerror})") from None
     if args.json:
         print(json.dumps(result.to_dict(), indent=1))
     else:

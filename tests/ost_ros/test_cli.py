@@ -130,3 +130,12 @@ def test_bad_state_one_line_exit_2(state, needle):
     assert r.returncode == 2
     assert needle in r.stderr and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_sim_plot(scenario, tmp_path):
+    png = tmp_path / "run.png"
+    r = ost("sim", scenario, "--plot", png)
+    assert r.returncode == 0, r.stderr
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+    bad = ost("sim", scenario, "--plot", tmp_path / "no" / "such" / "dir.png")
+    assert bad.returncode == 2 and "cannot write" in bad.stderr
