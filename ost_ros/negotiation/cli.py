@@ -1,0 +1,234 @@
+"""``ost negotiate …``: run one negotiation, or reproduce the paper's figures and tables.
+
+    ost negotiate run --task area --robots 3 [--delta 0.98] [--json]
+    ost negotiate run --file task.yaml [--json]
+    ost negotiate reproduce --out DIR [--quick] [--seed S] [--runs K] [--jobs J]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+from .errors import NegotiationError
+
+TASK_TYPES = ("area", "targets")
+
+
+def _usage_error():
+    from ost_ros.cli import UsageError  # the top-level CLI owns the error type
+
+    return UsageError
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``negotiate`` and its subcommands to the ``ost`` parser."""
+    from ost_ros.cli import OneLineParser
+
+    p = subparsers.add_parser("negotiate", help="negotiation-based task subdivision and allocation (Rossi et al.)",
+                              description="Negotiate how to split an area or a set of target points among robots.")
+    sub = p.add_subparsers(dest="negotiate_cmd", metavar="CMD", parser_class=OneLineParser)
+
+    run = sub.add_parser("run", help="run one negotiation from flags or a YAML/JSON task file")
+    run.add_argument("--file", type=Path, help="YAML or JSON task file (flags given too override it)")
+    run.add_argument("--task", help="task type: area or targets (default area)")
+    run.add_argument("--robots", type=int, help="number of robots (default 2)")
+    run.add_argument("--delta", help="discount factor(s), one or comma-separated per robot (default 0.98 / 0.9)")
+    run.add_argument("--polygon", help='area task polygon "x,y;x,y;..." (default: the 0.673 hexagon)')
+    run.add_argument("--targets", type=int, help="targets task: number of random points (default 5)")
+    run.add_argument("--strategy", help="rounds or all-against-all (default rounds)")
+    run.add_argument("--drop-rule", help="targets: farthest or path (default farthest)")
+    run.add_argument("--seed", type=int, help="random seed (default 0)")
+    run.add_argument("--max-rounds", type=int, help="time-out in rounds (default 400)")
+    run.add_argument("--json", action="store_true", help="print the result as JSON")
+    run.set_defaults(func=cmd_run, prog=run.prog)
+
+    rep = sub.add_parser("reproduce", help="reproduce Fig. 4, Tables 2-4 and the NFZ example into a report")
+    rep.add_argument("--out", type=Path, required=True, help="output directory (CSVs, PNGs, report.md)")
+    rep.add_argument("--quick", action="store_true", help="few runs per cell (well under a minute)")
+    rep.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
+    rep.add_argument("--runs", type=int, help="runs per table cell (default 10, quick 2-3)")
+    rep.add_argument("--jobs", type=int, help="worker processes (default: up to 2 cores)")
+    rep.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    rep.set_defaults(func=cmd_reproduce, prog=rep.prog)
+
+    p.set_defaults(func=lambda args: (p.print_help(), 2)[1], prog=p.prog)
+
+
+# ------------------------------------------------------------------ task files ------------------
+def load_task_file(path: Path) -> dict[str, Any]:
+    """Read a YAML/JSON task description into a dict (one-line errors)."""
+    UsageError = _usage_error()
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise UsageError(f"cannot read task file {path}: {exc.strerror or exc}") from None
+    try:
+        if path.suffix.lower() == ".json":
+            data = json.loads(text)
+        else:
+            import yaml
+
+            data = yaml.safe_load(text)
+    except Exception as exc:  # noqa: BLE001 - any parser error is the user's file
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise UsageError(f"task file {path} is not valid {'JSON' if path.suffix.lower() == '.json' else 'YAML'}: {first}") from None
+    if not isinstance(data, dict):
+        raise UsageError(f"task file {path} must hold a mapping (task:, robots:, ...)")
+    return data
+
+
+def build_from_spec(spec: dict[str, Any]):
+    """(task, agents, options) from a plain dict: the file format and the flags share it."""
+    import numpy as np
+
+    from .agents import AgentSpec
+    from .rewards import AreaReward, TargetReward
+    from .scenarios import ROBOT_START
+    from .tasks import AreaTask, TargetTask, make_task_polygon, polygon_from_vertices
+
+    known = {"task", "polygon", "area", "points", "weights", "targets", "robots", "delta", "strategy",
+             "seed", "max_rounds", "drop_rule", "start"}
+    extra = sorted(set(spec) - known)
+    if extra:
+        raise NegotiationError(f"unknown key(s) in task description: {', '.join(extra)}")
+    kind = str(spec.get("task", "area"))
+    if kind not in TASK_TYPES:
+        raise NegotiationError(f"unknown task type {kind!r} (expected area or targets)")
+    seed = _int(spec.get("seed", 0), "seed")
+    robots = spec.get("robots", 2)
+    if isinstance(robots, list):
+        entries = robots
+    else:
+        n = _int(robots, "robots")
+        if n < 1:
+            raise NegotiationError(f"need at least one robot, got {n}")
+        entries = [{} for _ in range(n)]
+    if not entries:
+        raise NegotiationError("need at least one robot, got 0")
+    deltas = spec.get("delta", 0.98 if kind == "area" else 0.9)
+    if isinstance(deltas, str):
+        deltas = [d for d in deltas.split(",") if d.strip()]
+    if not isinstance(deltas, list):
+        deltas = [deltas] * len(entries)
+    if len(deltas) == 1:
+        deltas = deltas * len(entries)
+    if len(deltas) != len(entries):
+        raise NegotiationError(f"got {len(deltas)} discount factors for {len(entries)} robots")
+    if kind == "area":
+        if "polygon" in spec:
+            task = AreaTask(polygon_from_vertices(spec["polygon"], "task polygon"))
+        else:
+            task = AreaTask(make_task_polygon(float(spec.get("area", 0.673))))
+    else:
+        if "points" in spec:
+            task = TargetTask.from_points(spec["points"], spec.get("weights"))
+        else:
+            n = _int(spec.get("targets", 5), "targets")
+            if n < 1:
+                raise NegotiationError(f"need at least one target, got {n}")
+            task = TargetTask.from_points(np.random.default_rng(seed).random((n, 2)))
+    agents = []
+    for i, (e, d) in enumerate(zip(entries, deltas)):
+        if not isinstance(e, dict):
+            raise NegotiationError(f"robot {i + 1}: expected a mapping (delta:, start:, forbidden:)")
+        d = e.get("delta", d)
+        try:
+            d = float(d)
+        except (TypeError, ValueError):
+            raise NegotiationError(f"robot {i + 1}: discount factor must be a number, got {d!r}") from None
+        start = tuple(float(v) for v in e.get("start", spec.get("start", ROBOT_START)))
+        if kind == "area":
+            zone = e.get("forbidden")
+            reward = AreaReward(forbidden=polygon_from_vertices(zone, f"robot {i + 1} forbidden zone") if zone else None)
+        else:
+            forb = frozenset(int(j) for j in e.get("forbidden", []))
+            if any(not 0 <= j < task.n for j in forb):
+                raise NegotiationError(f"robot {i + 1}: forbidden target index out of range 0..{task.n - 1}")
+            reward = TargetReward(start=start, forbidden=forb)
+        agents.append(AgentSpec(d, reward, name=f"robot {i + 1}"))
+    opts = {"strategy": str(spec.get("strategy", "rounds")), "seed": seed,
+            "max_rounds": _int(spec.get("max_rounds", 400), "max_rounds"),
+            "drop_rule": str(spec.get("drop_rule", "farthest"))}
+    return task, agents, opts
+
+
+def _int(v: Any, name: str) -> int:
+    try:
+        if isinstance(v, bool) or float(v) != int(float(v)):
+            raise ValueError
+        return int(float(v))
+    except (TypeError, ValueError):
+        raise NegotiationError(f"{name} must be an integer, got {v!r}") from None
+
+
+# ------------------------------------------------------------------ commands --------------------
+def cmd_run(args: argparse.Namespace) -> int:
+    from .multiparty import negotiate
+    from .optimal import evaluate_allocation
+    from .tasks import TargetTask
+
+    UsageError = _usage_error()
+    spec: dict[str, Any] = load_task_file(args.file) if args.file else {}
+    flags = {"task": args.task, "robots": args.robots, "delta": args.delta, "targets": args.targets,
+             "strategy": args.strategy, "seed": args.seed, "max_rounds": args.max_rounds,
+             "drop_rule": args.drop_rule}
+    spec.update({k: v for k, v in flags.items() if v is not None})
+    if args.polygon:
+        try:
+            spec["polygon"] = [[float(x) for x in pt.split(",")] for pt in args.polygon.split(";") if pt.strip()]
+        except ValueError:
+            raise UsageError(f'--polygon must look like "x,y;x,y;x,y", got {args.polygon!r}') from None
+    try:
+        task, agents, opts = build_from_spec(spec)
+        t = time.perf_counter()
+        res = negotiate(task, agents, strategy=opts["strategy"], seed=opts["seed"],
+                        max_rounds=opts["max_rounds"], drop_rule=opts["drop_rule"], trace=False)
+    except NegotiationError as exc:
+        raise UsageError(str(exc)) from None
+    elapsed = time.perf_counter() - t
+    out = res.to_dict()
+    out["elapsed_s"] = round(elapsed, 3)
+    out["robots"] = [{"delta": a.delta, "share": task.dim(task.inside(s)) / task.size} for a, s in zip(agents, res.shares)]
+    if isinstance(task, TargetTask):
+        import numpy as np
+
+        starts = np.array([a.reward.start for a in agents])
+        alloc = evaluate_allocation(starts, task.points, res.shares)
+        for r, s, length in zip(out["robots"], res.shares, alloc.lengths):
+            r["targets"] = sorted(s)
+            r["route_length"] = length
+    if args.json:
+        print(json.dumps(out, indent=2))
+        return 0
+    m = out["metrics"]
+    print(f"{task.kind} task, {len(agents)} robots, {opts['strategy']}: {res.status} after {res.rounds} rounds, "
+          f"{res.messages} messages, {elapsed:.2f} s")
+    print(f"overlap {100 * m['overlap']:.2f} %  G {m['G']:.4f}  covered {100 * m['covered']:.1f} %  out {100 * m['out']:.2f} %")
+    for i, r in enumerate(out["robots"]):
+        extra = f"  targets {r['targets']}  route {r['route_length']:.3f}" if "targets" in r else ""
+        print(f"robot {i + 1} (δ={r['delta']:g}): share {100 * r['share']:.1f} %{extra}")
+    return 0
+
+
+def cmd_reproduce(args: argparse.Namespace) -> int:
+    from .reproduce import reproduce
+
+    UsageError = _usage_error()
+    if args.runs is not None and args.runs < 1:
+        raise UsageError(f"--runs must be at least 1, got {args.runs}")
+    if args.jobs is not None and args.jobs < 1:
+        raise UsageError(f"--jobs must be at least 1, got {args.jobs}")
+    if args.out.exists() and not args.out.is_dir():
+        raise UsageError(f"--out {args.out} exists and is not a directory")
+    try:
+        summary = reproduce(args.out, quick=args.quick, seed=args.seed, runs=args.runs, workers=args.jobs,
+                            progress=not args.no_progress)
+    except NegotiationError as exc:
+        raise UsageError(str(exc)) from None
+    except OSError as exc:
+        raise UsageError(f"cannot write into {args.out}: {exc.strerror or exc}") from None
+    print(f"report written to {args.out / 'report.md'} ({summary['elapsed_s']:.1f} s)")
+    return 0

@@ -1,0 +1,6 @@
+"""The library's one error type: bad input, with a one-line message naming the problem."""
+from __future__ import annotations
+
+
+class NegotiationError(ValueError):
+    """Invalid negotiation input (task, discount factor, team, file). Message is one line."""
