@@ -57,6 +57,7 @@ class RunResult:
     found: dict[int, int] = field(default_factory=dict)   # object id -> step it was found
     schedule: list = field(default_factory=list)          # planned Assignments, in order
     error: str | None = None
+    lower_bound: int | None = None   # a makespan no run of the scenario can beat (ost_ros.bounds)
 
     def to_dict(self) -> dict[str, Any]:
         objects = []
@@ -71,6 +72,7 @@ class RunResult:
             "protocol": self.protocol,
             "trigger": self.trigger,
             "predicted_makespan": self.predicted_makespan,
+            "lower_bound": self.lower_bound,
             "steps": self.steps,
             "coordinations": self.coordinations,
             "messages": self.messages,
@@ -84,6 +86,26 @@ class RunResult:
             "error": self.error,
         }
 
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "RunResult":
+        """The inverse of :meth:`to_dict` (reads a result file of ``ost sim --json`` or a run)."""
+        from ost_ros.coordination import Assignment
+
+        return cls(
+            makespan=d["makespan"], last_delivery=d["last_delivery"], completed=d["completed"],
+            steps=d["steps"],
+            agents=[AgentRecord(a["id"], a["cost"], a["idle"], a["carry"], a["search"], a["travel"])
+                    for a in d["agents"]],
+            objects=[ObjectRecord(o["id"], tuple(o["agents"]), o["start"], o["delivered"])
+                     for o in d["objects"]],
+            rejections=d["rejections"], protocol=d["protocol"], trigger=d["trigger"],
+            predicted_makespan=d["predicted_makespan"], coordinations=d["coordinations"],
+            messages=d["messages"], agreement=d["agreement"], warnings=d["warnings"],
+            found={o["id"]: o["found"] for o in d["objects"] if o.get("found") is not None},
+            schedule=[Assignment(s["object"], tuple(s["agents"]), s["start"], s["finish"])
+                      for s in d["schedule"]],
+            error=d["error"], lower_bound=d.get("lower_bound"))
+
     def summary(self) -> str:
         """Human-readable report: headline figures, then one line per agent."""
         lines = []
@@ -92,6 +114,10 @@ class RunResult:
         lines.append(f"makespan        {self.makespan}")
         if self.predicted_makespan is not None:
             lines.append(f"predicted       {self.predicted_makespan}")
+        if self.lower_bound is not None:
+            ratio = f" (makespan/bound {self.makespan / self.lower_bound:.3f})" if (
+                self.makespan and self.lower_bound) else ""
+            lines.append(f"lower bound     {self.lower_bound}{ratio}")
         lines.append(f"last delivery   {self.last_delivery}")
         lines.append(f"objects         {sum(o.delivered is not None for o in self.objects)}"
                      f"/{len(self.objects)} delivered")

@@ -10,12 +10,14 @@ from typing import Callable
 
 from ost_ros.agent import CcpAgent
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.hcp import HcpAgent
 from ost_ros.model import Scenario
 from ost_ros.result import RunResult
 from ost_ros.team import TeamInfo
 from ost_ros.world import World
 
-PROTOCOLS = ("ccp",)
+PROTOCOLS = ("ccp", "hcp")
+ENGINES = ("step", "event")
 
 
 def step_limit(scenario: Scenario) -> int:
@@ -30,17 +32,36 @@ def make_agents(scenario: Scenario, protocol: str, policy: CoordinationPolicy) -
     if protocol not in PROTOCOLS:
         raise ValueError(f"unknown protocol {protocol!r} (choose from {', '.join(PROTOCOLS)})")
     team = TeamInfo.from_scenario(scenario)
+    if protocol == "hcp":
+        return [HcpAgent(a.id, team) for a in scenario.agents]
     return [CcpAgent(a.id, team, policy) for a in scenario.agents]
+
+
+def choose_engine(scenario: Scenario, engine: str = "auto") -> str:
+    """``auto``: the event engine once a run is big enough for it to matter, else the reference."""
+    if engine not in ENGINES + ("auto",):
+        raise ValueError(f"unknown engine {engine!r} (choose from auto, {', '.join(ENGINES)})")
+    if engine != "auto":
+        return engine
+    return "event" if scenario.n_agents * max(scenario.n_objects, 1) >= 50 else "step"
 
 
 def simulate(scenario: Scenario, protocol: str = "ccp", policy: CoordinationPolicy | None = None,
              max_steps: int | None = None,
-             on_step: Callable[[World, list], None] | None = None) -> RunResult:
+             on_step: Callable[[World, list], None] | None = None,
+             engine: str = "step") -> RunResult:
     """Run a scenario to completion (or to the step limit) and return the result.
 
-    ``on_step(world, actions)`` is called after each step (progress display, tracing, tests).
+    ``on_step(world, actions)`` is called after each step (progress display, tracing, tests);
+    the event engine (``engine="event"``, same result, :mod:`ost_ros.events`) has no steps to
+    report and ignores it.
     """
     policy = policy or CoordinationPolicy()
+    if choose_engine(scenario, engine) == "event":
+        if protocol not in PROTOCOLS:
+            raise ValueError(f"unknown protocol {protocol!r} (choose from {', '.join(PROTOCOLS)})")
+        from ost_ros.events import simulate_events   # events builds on this module
+        return simulate_events(scenario, protocol, policy, max_steps)
     agents = make_agents(scenario, protocol, policy)
     world = World(scenario)
     limit = max_steps if max_steps is not None else step_limit(scenario)
@@ -61,12 +82,18 @@ def finish_result(world: World, agents: list, protocol: str, policy: Coordinatio
                   messages: int) -> RunResult:
     """The world's record plus what the agents know (prediction, agreement, warnings)."""
     first = agents[0].comm
-    agreement = all(ag.comm.schedule == first.schedule for ag in agents)
+    # CCP agents agree on the global schedule; HCP agents on every staffing decision.
+    view = (lambda c: c.groups) if protocol == "hcp" else (lambda c: c.schedule)
+    agreement = all(view(ag.comm) == view(first) for ag in agents)
     warnings = [f"agent {ag.id}: {w}" for ag in agents for w in ag.warnings]
-    result = world.result(protocol=protocol, trigger=policy.name,
+    found: dict[int, int] = {}
+    for ag in agents:   # CCP: everyone knows every find; HCP: each owner knows its own
+        for oid, t in ag.comm.found_at.items():
+            found[oid] = min(t, found.get(oid, t))
+    result = world.result(protocol=protocol, trigger=policy.name if protocol == "ccp" else "help",
                           predicted_makespan=first.predicted_makespan,
                           coordinations=first.coordinations, messages=messages,
-                          agreement=agreement, warnings=warnings, found=dict(first.found_at),
+                          agreement=agreement, warnings=warnings, found=dict(sorted(found.items())),
                           schedule=list(first.schedule))
     if not result.completed:
         result.error = f"not finished after {world.t} steps (deadlock or step limit)"

@@ -8,84 +8,57 @@ from pathlib import Path
 from typing import Any
 
 from ost_ros import validate as v
+from ost_ros.commands.args import fraction, leaf, load_scenario_arg, natural, positive
 from ost_ros.errors import UsageError
 from ost_ros.coordination import CoordinationPolicy, coordinate
 from ost_ros.model import DEFAULT_HEIGHT, DEFAULT_NMAX, DEFAULT_WIDTH, Grid, ObjectSpec
-from ost_ros.scenario import (ScenarioError, dump_scenario, generate_scenario, load_scenario,
-                              with_team)
-from ost_ros.simulator import PROTOCOLS, simulate
+from ost_ros.scenario import ScenarioError, dump_scenario, generate_scenario
+from ost_ros.bounds import lower_bound
+from ost_ros.simulator import ENGINES, PROTOCOLS, choose_engine, simulate
 from ost_ros.validate import FieldError
 
 OBJECT_KEYS = ("id", "location", "destination", "required")
 
 
-def _at_least(minimum: int):
-    """argparse type: an integer >= minimum."""
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"invalid integer {text!r}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
-        return value
-    return parse
-
-
-_positive, _natural = _at_least(1), _at_least(0)
-
-
-def _fraction(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid number {text!r}") from None
-    if not 0 < value <= 1:
-        raise argparse.ArgumentTypeError(f"must be in (0, 1], got {value}")
-    return value
-
-
-def _leaf(sub, name: str, func, **kwargs) -> argparse.ArgumentParser:
-    parser = sub.add_parser(name, **kwargs)
-    parser.set_defaults(func=func, prog=parser.prog)
-    return parser
-
-
 def register(sub) -> None:
-    p = _leaf(sub, "generate", cmd_generate, help="write a random scenario (paper §5.1)",
+    p = leaf(sub, "generate", cmd_generate, help="write a random scenario (paper §5.1)",
               description="Write the paper's random scenario: distinct uniform object locations, "
                           "uniform destinations, n_i uniform in 1..nmax; ids = rank by (x, y). "
                           "The objects depend on --seed only, not on --agents.")
-    p.add_argument("--agents", type=_positive, required=True, help="number of agents N")
-    p.add_argument("--objects", type=_natural, required=True, help="number of objects M")
-    p.add_argument("--seed", type=_natural, required=True, help="random seed")
-    p.add_argument("--width", type=_positive, default=DEFAULT_WIDTH, help="grid width (500)")
-    p.add_argument("--height", type=_positive, default=DEFAULT_HEIGHT, help="grid height (200)")
-    p.add_argument("--nmax", type=_positive, default=DEFAULT_NMAX,
+    p.add_argument("--agents", type=positive, required=True, help="number of agents N")
+    p.add_argument("--objects", type=natural, required=True, help="number of objects M")
+    p.add_argument("--seed", type=natural, required=True, help="random seed")
+    p.add_argument("--width", type=positive, default=DEFAULT_WIDTH, help="grid width (500)")
+    p.add_argument("--height", type=positive, default=DEFAULT_HEIGHT, help="grid height (200)")
+    p.add_argument("--nmax", type=positive, default=DEFAULT_NMAX,
                    help="largest number of agents an object needs (10)")
     p.add_argument("-o", "--output", help="file to write (default: standard output)")
 
-    p = _leaf(sub, "sim", cmd_sim, help="simulate a scenario in-process",
+    p = leaf(sub, "sim", cmd_sim, help="simulate a scenario in-process",
               description="Run a scenario in the in-process reference simulator and print the "
                           "makespan, last delivery and per-agent cost / idle / carry time.")
     p.add_argument("scenario", help="scenario file (YAML)")
     p.add_argument("--protocol", choices=PROTOCOLS, default="ccp", help="cooperation protocol")
     trig = p.add_mutually_exclusive_group()
-    trig.add_argument("--ci", type=_positive, default=1,
+    trig.add_argument("--ci", type=positive, default=1,
                       help="coordination interval: coordinate when this many found objects are "
                            "unscheduled (default 1; >= M means after the whole search)")
-    trig.add_argument("--interval", type=_positive, help="coordinate every T time steps instead")
-    trig.add_argument("--area-fraction", type=_fraction,
+    trig.add_argument("--interval", type=positive, help="coordinate every T time steps instead")
+    trig.add_argument("--area-fraction", type=fraction,
                       help="coordinate each time this fraction of the area is searched instead")
-    p.add_argument("--agents", type=_positive,
+    p.add_argument("--agents", type=positive,
                    help="replace the scenario's team by N agents (default partition and bases)")
-    p.add_argument("--max-steps", type=_positive, help="stop after this many steps")
+    p.add_argument("--max-steps", type=positive, help="stop after this many steps")
+    p.add_argument("--engine", choices=("auto",) + ENGINES, default="auto",
+                   help="step: the reference, every agent every step; event: jumps from decision "
+                        "to decision, same result (default auto: event for big runs, step when "
+                        "a progress bar or a plot needs every step)")
     p.add_argument("--json", action="store_true", help="print the full result as JSON")
     p.add_argument("--plot", metavar="PNG", help="also draw the map and every agent's timeline")
     p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                    help="progress bar on stderr (default: when stderr is a terminal)")
 
-    p = _leaf(sub, "schedule", cmd_schedule, help="run only the Coordination algorithm",
+    p = leaf(sub, "schedule", cmd_schedule, help="run only the Coordination algorithm",
               description="Run Algorithm Coordination on a state file "
                           '{"agents":[{"id","cost","location"}],'
                           '"objects":[{"id","location","destination","required"}]} '
@@ -118,12 +91,7 @@ def cmd_generate(args: argparse.Namespace) -> int:
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
-    try:
-        scenario = load_scenario(args.scenario)
-        if args.agents is not None:
-            scenario = with_team(scenario, args.agents)
-    except ScenarioError as exc:
-        raise UsageError(str(exc)) from None
+    scenario = load_scenario_arg(args.scenario, args.agents)
     policy = CoordinationPolicy(ci=args.ci, interval=args.interval, area_fraction=args.area_fraction)
     show = sys.stderr.isatty() if args.progress is None else args.progress
     bar = None
@@ -148,12 +116,21 @@ def cmd_sim(args: argparse.Namespace) -> int:
     def on_step(world, actions):
         for hook in hooks:
             hook(world, actions)
+    # The event engine has no steps to show: a plot or an asked-for bar keeps the reference.
+    engine = args.engine
+    if engine == "auto":
+        engine = "step" if (args.plot or args.progress) else choose_engine(scenario)
+    if engine == "event" and bar is not None:
+        bar.close()
+        bar = None
+        hooks = [h for h in hooks if h is not progress]
     try:
         result = simulate(scenario, args.protocol, policy, max_steps=args.max_steps,
-                          on_step=on_step if hooks else None)
+                          on_step=on_step if hooks else None, engine=engine)
     finally:
         if bar is not None:
             bar.close()
+    result.lower_bound = lower_bound(scenario).value
     if args.plot:
         from ost_ros.plot import plot_run
         try:

@@ -1,6 +1,5 @@
 """Algorithm Coordination: hand-computed cases, ties, and the numpy version against a plain
 transcription of the paper's pseudo-code."""
-import numpy as np
 import pytest
 from hypothesis import given, strategies as st
 

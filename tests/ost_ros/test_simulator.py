@@ -1,13 +1,13 @@
 """The reference simulator: a hand-computed run, and the paper's promises as properties on random
 small scenarios (every object delivered once by n_i agents at once, one cell per step, no
 deadlock, planned = executed)."""
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
 
 from ost_ros.coordination import Assignment, CoordinationPolicy
-from ost_ros.model import AgentSpec, Grid, ObjectSpec, manhattan
-from ost_ros.partition import choose_partition
+from ost_ros.model import Grid, ObjectSpec, manhattan
 from ost_ros.scenario import build_scenario, generate_objects
 from ost_ros.simulator import simulate
+from strategies import policies, scenarios
 
 
 def one_agent_scenario():
@@ -41,30 +41,9 @@ def test_no_objects_everyone_searches_and_returns():
     assert r.completed and r.makespan == r.predicted_makespan and r.last_delivery == 0
 
 
-@st.composite
-def scenarios(draw):
-    w, h = draw(st.integers(4, 24)), draw(st.integers(3, 12))
-    n = draw(st.integers(1, 5))
-    m, k = choose_partition(n, Grid(w, h)) if n <= min(w, h) else (1, 1)
-    n = m * k
-    nmax = draw(st.integers(1, n))
-    objects = generate_objects(draw(st.integers(0, 7)), draw(st.integers(0, 10**6)), Grid(w, h), nmax)
-    bases = None
-    if draw(st.booleans()):  # bases anywhere, not only at the sweep starts
-        bases = [AgentSpec(i, (draw(st.integers(0, w - 1)), draw(st.integers(0, h - 1))))
-                 for i in range(n)]
-    scenario = build_scenario(Grid(w, h), objects, partition=(m, k), agents=bases, nmax=nmax)
-    policy = draw(st.one_of(
-        st.builds(CoordinationPolicy, ci=st.integers(1, 9)),
-        st.builds(CoordinationPolicy, interval=st.integers(1, 40)),
-        st.builds(CoordinationPolicy, area_fraction=st.sampled_from([0.1, 0.25, 0.5, 1.0]))))
-    return scenario, policy
-
-
 @settings(max_examples=150)
-@given(scenarios())
-def test_paper_promises_hold(case):
-    scenario, policy = case
+@given(scenarios(), policies)
+def test_paper_promises_hold(scenario, policy):
     trace = []
     result = simulate(scenario, policy=policy,
                       on_step=lambda world, actions: trace.append(dict(world.positions)))

@@ -1,0 +1,51 @@
+"""argparse helpers shared by the verbs: typed values with one-line errors, and leaf parsers."""
+from __future__ import annotations
+
+import argparse
+
+
+def at_least(minimum: int):
+    """argparse type: an integer >= minimum."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"invalid integer {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
+        return value
+    return parse
+
+
+positive, natural = at_least(1), at_least(0)
+
+
+def fraction(text: str) -> float:
+    """argparse type: a number in (0, 1]."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid number {text!r}") from None
+    if not 0 < value <= 1:
+        raise argparse.ArgumentTypeError(f"must be in (0, 1], got {value}")
+    return value
+
+
+def leaf(sub, name: str, func, **kwargs) -> argparse.ArgumentParser:
+    """A verb's parser; ``func(args) -> exit code`` runs it, ``prog`` names it in errors."""
+    parser = sub.add_parser(name, **kwargs)
+    parser.set_defaults(func=func, prog=parser.prog)
+    return parser
+
+
+def load_scenario_arg(path: str, agents: int | None):
+    """The scenario file a verb was given, with ``--agents`` replacing its team; bad files are
+    one-line usage errors."""
+    from ost_ros.errors import UsageError
+    from ost_ros.scenario import ScenarioError, load_scenario, with_team
+
+    try:
+        scenario = load_scenario(path)
+        return scenario if agents is None else with_team(scenario, agents)
+    except ScenarioError as exc:
+        raise UsageError(str(exc)) from None

@@ -1,0 +1,80 @@
+"""The event-driven engine gives exactly the step simulator's run: every found time, the schedule,
+every object's group/start/delivery, every agent's cost/idle/carry/search/travel, the makespan,
+message and coordination counts — for CCP under every trigger kind, and for HCP."""
+from hypothesis import given, settings, strategies as st
+
+from ost_ros.coordination import CoordinationPolicy
+from ost_ros.events import first_sensing, simulate_events
+from ost_ros.model import Grid
+from ost_ros.partition import choose_partition
+from ost_ros.scenario import build_scenario, generate_objects, generate_scenario
+from ost_ros.simulator import choose_engine, simulate
+
+import numpy as np
+from strategies import policies, scenarios
+
+
+def same_run(a, b):
+    da, db = a.to_dict(), b.to_dict()
+    assert da == db
+    assert a.found == b.found and a.schedule == b.schedule
+
+
+@settings(max_examples=300)
+@given(scenarios(width=(4, 40), height=(3, 16), agents=(1, 8), objects=(0, 14)), policies)
+def test_ccp_event_engine_equals_step_engine(scenario, policy):
+    same_run(simulate(scenario, "ccp", policy), simulate_events(scenario, "ccp", policy))
+
+
+@settings(max_examples=300)
+@given(scenarios(width=(4, 40), height=(3, 16), agents=(1, 8), objects=(0, 14)))
+def test_hcp_event_engine_equals_step_engine(scenario):
+    same_run(simulate(scenario, "hcp"), simulate_events(scenario, "hcp"))
+
+
+@st.composite
+def crowded(draw):
+    # Bigger teams and more objects than above: many simultaneous requests, withdrawals, groups.
+    w, h = draw(st.integers(20, 60)), draw(st.integers(9, 30))
+    n = draw(st.sampled_from([4, 6, 8, 9, 10, 12]))
+    m, k = choose_partition(n, Grid(w, h))
+    nmax = draw(st.integers(2, n))
+    objects = generate_objects(draw(st.integers(10, 30)), draw(st.integers(0, 10**6)), Grid(w, h), nmax)
+    return build_scenario(Grid(w, h), objects, partition=(m, k), nmax=nmax)
+
+
+@settings(max_examples=40)
+@given(crowded(), policies)
+def test_engines_agree_on_crowded_scenarios(scenario, policy):
+    a = simulate(scenario, "hcp")
+    assert a.completed and a.rejections == [] and a.warnings == []
+    same_run(a, simulate_events(scenario, "hcp"))
+    same_run(simulate(scenario, "ccp", policy), simulate_events(scenario, "ccp", policy))
+
+
+def test_paper_sized_runs_agree():
+    # One paper-sized object set (500x200, N=10, M=20) per protocol, end to end.
+    s = generate_scenario(10, 20, 7)
+    for proto, policy in (("ccp", CoordinationPolicy(ci=1)), ("ccp", CoordinationPolicy(ci=20)),
+                          ("hcp", CoordinationPolicy())):
+        same_run(simulate(s, proto, policy), simulate_events(s, proto, policy))
+
+
+def test_step_limit_falls_back_to_reference():
+    s = build_scenario(Grid(30, 12), generate_objects(4, 5, Grid(30, 12), 2), n_agents=2, nmax=2)
+    for proto in ("ccp", "hcp"):
+        a = simulate(s, proto, max_steps=10)
+        b = simulate_events(s, proto, max_steps=10)
+        assert not b.completed and b.steps == a.steps == 10 and b.error == a.error
+
+
+def test_first_sensing_covers_the_3x3_block():
+    path = np.array([[0, 1], [1, 1], [2, 1], [3, 1]])
+    cells = np.array([[0, 0], [3, 2], [4, 0], [5, 1], [2, 3]])
+    assert first_sensing(path, cells).tolist() == [0, 2, 3, -1, -1]
+
+
+def test_engine_choice():
+    small = build_scenario(Grid(10, 3), [], n_agents=1)
+    assert choose_engine(small) == "step" and choose_engine(generate_scenario(10, 20, 1)) == "event"
+    assert choose_engine(small, "event") == "event"
