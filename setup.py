@@ -26,6 +26,8 @@ setup(
     entry_points={
         "console_scripts": [
             "ost = ost_ros.cli:main",
+            "world_node = world_node.world_node:main",
+            "agent_node = agent_node.agent_node:main",
         ],
     },
 )

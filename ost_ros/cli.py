@@ -27,6 +27,8 @@ class OneLineParser(argparse.ArgumentParser):
 VERB_MODULES: tuple[str, ...] = (
     "ost_ros.commands.core",
     "ost_ros.negotiation.cli",
+    "ost_ros.commands.ros",
+    "ost_ros.commands.study",
 )
 
 

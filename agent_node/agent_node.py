@@ -1,0 +1,244 @@
+"""``agent_node``: one robot — the core agent behind a DDS transport.
+
+    agent_node --ros-args -p agent_id:=3 -p scenario:=run.yaml -p ci:=1
+
+Parameters: ``agent_id``, ``scenario`` (YAML file), ``agents`` (team size override, 0 = the
+file's), ``protocol``, ``ci`` / ``interval`` / ``area_fraction`` (the coordination trigger),
+``lookahead`` (quiet steps planned for event skipping; 0 = off). The agent is built by the core's
+factory (``ost_ros.simulator.make_agents``) and runs unchanged: the node only orders its calls
+(:mod:`agent_node.runtime`) and moves messages.
+"""
+from __future__ import annotations
+
+import sys
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from std_msgs.msg import String
+
+from agent_node import transport as tp
+from agent_node.runtime import AgentRuntime, ProtocolViolation
+from ost_msgs_py.runtime import Ready, Resend, RunEnd, StepMessages, Tick
+from ost_ros.coordination import CoordinationPolicy
+from ost_ros.scenario import ScenarioError, load_scenario, with_team
+from ost_ros.simulator import PROTOCOLS, make_agents
+
+# Without the world for this long after the start, the agent gives up (it would wait forever).
+WORLD_LOST_S = 10.0
+# A tick held this long for peers' step messages is reported (whose are missing).
+STALL_S = 5.0
+
+
+class ParameterError(ValueError):
+    """A bad node parameter; the text names it."""
+
+
+class AgentNode(Node):
+    """``/ost/agent_<id>``: parameters → core agent → :class:`AgentRunner` on its topics."""
+
+    def __init__(self, name: str = "agent"):
+        super().__init__(name, namespace=tp.NAMESPACE)
+        declare(self)
+        scenario, runtime = load_agent(self)
+        self.runner = AgentRunner(self, scenario, runtime)
+
+
+def load_agent(node: Node):
+    """Read and check the parameters; the runtime around the core agent."""
+    p = {name: node.get_parameter(name).value for name in
+         ("agent_id", "scenario", "agents", "protocol", "ci", "interval", "area_fraction",
+          "lookahead")}
+    if p["agent_id"] < 0:
+        raise ParameterError("agent_id: must be set to a non-negative id (-p agent_id:=N)")
+    if not p["scenario"]:
+        raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
+    if p["protocol"] not in PROTOCOLS:
+        raise ParameterError(f"protocol: {p['protocol']!r} is not one of {', '.join(PROTOCOLS)}")
+    for name in ("ci", "agents", "interval", "lookahead"):
+        if p[name] < 0 or (name == "ci" and p[name] < 1):
+            raise ParameterError(f"{name}: {p[name]} is out of range")
+    if not 0.0 <= p["area_fraction"] <= 1.0:
+        raise ParameterError(f"area_fraction: {p['area_fraction']} is not in [0, 1]")
+    try:
+        scenario = load_scenario(p["scenario"])
+        if p["agents"]:
+            scenario = with_team(scenario, p["agents"])
+    except ScenarioError as exc:
+        raise ParameterError(f"scenario: {exc}") from None
+    ids = tuple(a.id for a in scenario.agents)
+    if p["agent_id"] not in ids:
+        raise ParameterError(f"agent_id: {p['agent_id']} is not in the scenario's team {list(ids)}")
+    policy = CoordinationPolicy(ci=p["ci"], interval=p["interval"] or None,
+                                area_fraction=p["area_fraction"] or None)
+    agent = next(a for a in make_agents(scenario, p["protocol"], policy) if a.id == p["agent_id"])
+    return scenario, AgentRuntime(agent, ids, policy.name, p["lookahead"])
+
+
+class AgentRunner:
+    """Wires one :class:`AgentRuntime` to its topics."""
+
+    def __init__(self, node: Node, scenario, runtime: AgentRuntime):
+        self.node = node
+        self.rt = runtime
+        self.n = len(runtime.team)
+        self.fingerprint = tp.scenario_fingerprint(scenario)
+        self.protocol = runtime.agent.protocol
+        self.done = False
+        self.exit_code = 0
+        self.ready_sent = False
+        self.world_seen = False
+        self.world_lost_since: float | None = None
+        self.held_since: float | None = None
+        self.throttle = tp.Throttle(node.get_logger())
+        me = runtime.me
+        q = tp.LOCKSTEP_QOS
+        self.tick_topic = tp.tick_topic(me)
+        self.pub_acted = node.create_publisher(String, tp.ACTED, q)
+        self.pub_batch = node.create_publisher(String, tp.STEP_MESSAGES, q)
+        self.pub_ready = node.create_publisher(String, tp.READY, tp.LATCHED_ALL_QOS)
+        self.pub_report = node.create_publisher(String, tp.REPORTS, tp.LATCHED_ALL_QOS)
+        self.sub_tick = node.create_subscription(String, self.tick_topic, self.on_tick, q)
+        self.sub_batch = node.create_subscription(String, tp.STEP_MESSAGES, self.on_batch, q)
+        self.pub_resend = node.create_publisher(String, tp.RESEND, q)
+        self.sub_resend = node.create_subscription(String, tp.RESEND, self.on_resend, q)
+        self.resent_at: float | None = None
+        self.sub_end = node.create_subscription(String, tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS)
+        self.sub_result = node.create_subscription(String, tp.RESULT, self.on_result, tp.RESULT_QOS)
+        self.timer = node.create_timer(0.1, self.on_timer)
+
+    # ------------------------------------------------------------------ discovery
+
+    def matched(self) -> bool:
+        """Every endpoint this agent needs is matched (counted, never waited for by sleeping)."""
+        return (self.pub_acted.get_subscription_count() >= 1
+                and self.pub_ready.get_subscription_count() >= 1
+                and self.pub_report.get_subscription_count() >= 1
+                and self.pub_batch.get_subscription_count() >= self.n
+                and self.sub_batch.get_publisher_count() >= self.n
+                and self.sub_tick.get_publisher_count() >= 1
+                and self.sub_end.get_publisher_count() >= 1)
+
+    def on_timer(self) -> None:
+        if not self.ready_sent:
+            if self.matched():
+                self.pub_ready.publish(tp.to_string(Ready(self.rt.me, self.protocol, self.fingerprint)))
+                self.ready_sent = True
+                self.world_seen = True
+                self.node.get_logger().info(f"ready: {self.n} agents and the world matched")
+            return
+        # The world gone for good: stop instead of waiting forever.
+        now = self.node.get_clock().now().nanoseconds * 1e-9
+        held = self.rt.held()
+        if held is not None and held[1]:
+            self.held_since = self.held_since or now
+            if now - self.held_since > tp.RESEND_S and now - (self.resent_at or 0.0) > tp.RESEND_S:
+                self.pub_resend.publish(tp.to_string(Resend(self.rt.me, self.rt.last, held[1])))
+                self.resent_at = now
+            if now - self.held_since > STALL_S:
+                self.throttle.warn(tp.STEP_MESSAGES, "the barrier",
+                                   f"tick {held[0]} held for {STALL_S:g} s; no step messages yet "
+                                   f"from agents {list(held[1])}")
+                self.held_since = now
+        else:
+            self.held_since = None
+        if self.sub_tick.get_publisher_count() == 0:
+            self.world_lost_since = self.world_lost_since or now
+            if now - self.world_lost_since > WORLD_LOST_S:
+                self.node.get_logger().error(f"world node gone for {WORLD_LOST_S:.0f} s; exiting")
+                self.exit_code, self.done = 1, True
+        else:
+            self.world_lost_since = None
+
+    # ------------------------------------------------------------------ traffic
+
+    def _progress(self) -> None:
+        for out in self.rt.progress():
+            if isinstance(out, StepMessages):
+                self.pub_batch.publish(tp.to_string(out))
+            elif out.TYPE == "acted":
+                self.pub_acted.publish(tp.to_string(out))
+            else:
+                self.pub_report.publish(tp.to_string(out))
+                self.node.get_logger().info(f"run ended; report sent ({self.rt.sent} messages)")
+
+    def _feed(self, msg: String, topic: str, expected, accept) -> None:
+        m = tp.decode_or_warn(msg, topic, expected, self.throttle)
+        if m is None:
+            return
+        try:
+            accept(m)
+        except ProtocolViolation as exc:
+            sender = getattr(m, "sender", None)
+            self.throttle.warn(topic, "world" if sender is None else f"agent {sender}", str(exc))
+            return
+        self._progress()
+
+    def on_tick(self, msg: String) -> None:
+        self._feed(msg, self.tick_topic, Tick, self.rt.accept_tick)
+
+    def on_batch(self, msg: String) -> None:
+        self._feed(msg, tp.STEP_MESSAGES, StepMessages, self.rt.accept_batch)
+
+    def on_resend(self, msg: String) -> None:
+        self._feed(msg, tp.RESEND, Resend, self.rt.accept_resend)
+
+    def on_end(self, msg: String) -> None:
+        self._feed(msg, tp.RUN_END, RunEnd, self.rt.accept_end)
+
+    def on_result(self, msg: String) -> None:
+        # The world has every report: this agent's job is over.
+        if self.rt.finished:
+            self.done = True
+
+
+def declare(node: Node) -> None:
+    node.declare_parameter("agent_id", -1)
+    node.declare_parameter("scenario", "")
+    node.declare_parameter("agents", 0)
+    node.declare_parameter("protocol", "ccp")
+    node.declare_parameter("ci", 1)
+    node.declare_parameter("interval", 0)
+    node.declare_parameter("area_fraction", 0.0)
+    node.declare_parameter("lookahead", 64)
+
+
+def main(args=None) -> int:
+    rclpy.init(args=args)
+    node = None
+    code = 0
+    try:
+        # The node's name is agent_<id>; the id is a parameter, so read it with a bootstrap node
+        # that is discarded (parameters from --ros-args apply to every node of the process).
+        boot = Node("agent_param_reader", namespace=tp.NAMESPACE, start_parameter_services=False,
+                    enable_rosout=False)
+        declare(boot)
+        agent_id = boot.get_parameter("agent_id").value
+        boot.destroy_node()
+        name = tp.agent_node_name(agent_id) if isinstance(agent_id, int) and agent_id >= 0 else "agent"
+        node = AgentNode(name)
+        runner = node.runner
+        while rclpy.ok() and not runner.done:
+            rclpy.spin_once(node, timeout_sec=0.5)
+        code = runner.exit_code
+    except ParameterError as exc:
+        print(f"agent_node: error: {exc}", file=sys.stderr)
+        node = None
+        code = 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception as exc:  # a parameter of the wrong type, and the like: one line, no traceback
+        if "Parameter" in type(exc).__name__:   # wrong parameter type from --ros-args
+            print(f"agent_node: error: {exc}", file=sys.stderr)
+            code = 2
+        else:
+            raise
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,268 @@
+"""The agent side of the lockstep protocol, ROS-free: one core agent driven by decoded messages.
+
+Per step the agent node feeds it a :class:`Tick` and peers' :class:`StepMessages`; it answers
+with what to publish. Order inside the agent is exactly the in-process simulator's:
+
+    Tick(t, last, peers) → comm module for step ``last`` with the batches of ``peers`` (+ own)
+                         → replay skipped steps last+1 .. t-1 from the own plan (no messages)
+                         → act(observation t) → publish Acted(t) and, if any, StepMessages(t)
+
+A Tick is held until every listed peer's batch of step ``last`` is in (the counting barrier). The
+core agent runs unchanged; this class only orders its calls.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+
+from ost_msgs_py.messages import Action, ActionKind, Observation, ObjectInfo
+from ost_msgs_py.runtime import (ProtocolViolation, Acted, AgentReport, PlanStep, Resend, RunEnd,
+                                 ScheduleEntry, StepMessages, Tick)
+from ost_ros.agent import CcpAgent, GlobalState
+from ost_ros.motion import apply as move
+
+_SENSE = tuple((dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1))   # the world's sensing order
+
+
+@dataclass
+class AgentRuntime:
+    agent: object                       # a core agent: act(obs), outbox(), communicate(t, msgs)
+    team: tuple[int, ...]               # every agent id, ascending (the simulator's inbox order)
+    trigger: str = ""
+    lookahead: int = 0                  # plan this many quiet steps ahead (0: no event skipping)
+    last: int = -1                      # the last step this agent acted on
+    sent: int = 0                       # protocol messages broadcast so far
+    finished: bool = False
+    _tick: Tick | None = None
+    _end: RunEnd | None = None
+    _batches: dict[int, dict[int, StepMessages]] = field(default_factory=dict)
+    _own: list = field(default_factory=list)
+    _plan: tuple[PlanStep, ...] = ()
+    _known: dict[int, ObjectInfo] = field(default_factory=dict)
+    _horizon: int = 8                   # current planning depth, adapted to what the world skips
+    # Recovery from a lost sample: what was published for the last step, to publish again.
+    _last_tick: Tick | None = None
+    _last_out: list = field(default_factory=list)
+    _batches_sent: dict[int, StepMessages] = field(default_factory=dict)
+    _resend: list = field(default_factory=list)
+    _report: AgentReport | None = None
+
+    @property
+    def me(self) -> int:
+        return self.agent.id
+
+    # ------------------------------------------------------------------ input
+
+    def accept_batch(self, batch: StepMessages) -> None:
+        if batch.sender == self.me:
+            return  # own batch: kept locally when sent
+        if batch.sender not in self.team:
+            raise ProtocolViolation(f"step_messages from agent {batch.sender}, not in the team")
+        if batch.t < self.last:
+            return  # a re-sent batch of a step already done (see Resend)
+        per_step = self._batches.setdefault(batch.t, {})
+        if batch.sender in per_step:
+            if per_step[batch.sender] == batch:
+                return  # the same batch again (see Resend)
+            raise ProtocolViolation(f"second, different step_messages of agent {batch.sender} "
+                                    f"for step {batch.t}")
+        per_step[batch.sender] = batch
+
+    def accept_resend(self, req: Resend) -> None:
+        """A peer lacks this agent's batch of step ``req.t``: publish it again (if there was one)."""
+        if req.sender not in self.team:
+            raise ProtocolViolation(f"resend request from agent {req.sender}, not in the team")
+        batch = self._batches_sent.get(req.t)
+        if self.me in req.peers and batch is not None and batch not in self._resend:
+            self._resend.append(batch)
+
+    def accept_tick(self, tick: Tick) -> None:
+        if tick.observation.agent != self.me or tick.observation.t != tick.t:
+            raise ProtocolViolation(f"tick for agent {tick.observation.agent} step "
+                                    f"{tick.observation.t}, this is agent {self.me}")
+        if tick == self._tick:
+            return  # re-sent while still held: nothing new
+        if tick == self._last_tick:
+            # The world re-sent the tick this agent already answered: its answer was lost.
+            self._resend.extend(m for m in self._last_out if m not in self._resend)
+            return
+        if tick.last != self.last or tick.t <= self.last or self._tick is not None:
+            raise ProtocolViolation(f"tick for step {tick.t} after {tick.last}, this agent acted "
+                                    f"last in step {self.last}")
+        if tick.t - tick.last - 1 > len(self._plan):
+            raise ProtocolViolation(f"tick skips {tick.t - tick.last - 1} steps, the plan has "
+                                    f"{len(self._plan)}")
+        self._tick = tick
+
+    def accept_end(self, end: RunEnd) -> None:
+        if self._report is not None:
+            if self._report not in self._resend:   # the world re-sent run_end: report again
+                self._resend.append(self._report)
+            return
+        if end == self._end:
+            return
+        if end.last != self.last or end.steps - end.last - 1 > len(self._plan):
+            raise ProtocolViolation(f"run_end after step {end.last} (+{end.steps - end.last - 1} "
+                                    f"skipped), this agent acted last in step {self.last}")
+        self._end = end
+
+    # ------------------------------------------------------------------ progress
+
+    def held(self) -> tuple[int, tuple[int, ...]] | None:
+        """A tick held by the barrier: its step and the peers whose step messages are missing."""
+        if self._tick is None:
+            return None
+        have = self._batches.get(self.last, {})
+        return self._tick.t, tuple(p for p in self._tick.peers if p != self.me and p not in have)
+
+    def _ready(self, peers: tuple[int, ...]) -> bool:
+        have = self._batches.get(self.last, {})
+        return all(p == self.me or p in have for p in peers)
+
+    def _finish_step(self, peers: tuple[int, ...], until: int) -> None:
+        """Comm module for ``self.last``, then replay the skipped steps up to ``until`` - 1."""
+        if self.last >= 0:
+            have = self._batches.pop(self.last, {})
+            inbox = []
+            for sender in self.team:
+                if sender == self.me:
+                    inbox.extend(self._own)
+                elif sender in peers:
+                    inbox.extend(have[sender].messages)
+            self._learn(inbox)
+            self.agent.communicate(self.last, inbox)
+        # Plan about twice as far as the world last skipped: long quiet stretches get long plans,
+        # busy phases (every plan cut short by someone's message) cost little planning.
+        self._horizon = max(8, min(self.lookahead, 2 * (until - self.last - 1)))
+        for k, s in enumerate(range(self.last + 1, until)):
+            step = self._plan[k]
+            obs = Observation(self.me, s, step.position, tuple(self._known[i] for i in step.sensed))
+            action = self.agent.act(obs)
+            if self.agent.outbox() or not _same_action(action, step):
+                raise ProtocolViolation(f"replaying step {s}: the agent deviated from its plan")
+            self.agent.communicate(s, [])
+        self._own = []
+        self._plan = ()
+
+    def progress(self) -> list:
+        """Everything that can be done now; returns the messages to publish, in order."""
+        out, self._resend = self._resend, []
+        if self._tick is not None and self._ready(self._tick.peers):
+            tick, self._tick = self._tick, None
+            self._finish_step(tick.peers, tick.t)
+            obs = tick.observation
+            self._learn(obs.sensed)
+            action = self.agent.act(obs)
+            messages = self.agent.outbox()
+            self.last = tick.t
+            self._own = list(messages)
+            self.sent += len(messages)
+            self._plan = self._make_plan(obs, action) if self.lookahead and not messages else ()
+            step_out: list = [Acted(action, len(messages), self._plan)]
+            if messages:
+                batch = StepMessages(self.me, tick.t, tuple(messages))
+                step_out.append(batch)
+                self._batches_sent[tick.t] = batch
+                # A peer is at most one lockstep step behind: keep the last few batches only.
+                while len(self._batches_sent) > 3:
+                    del self._batches_sent[min(self._batches_sent)]
+            self._last_tick, self._last_out = tick, step_out
+            out.extend(step_out)
+        if self._end is not None and self._tick is None and self._ready(self._end.peers):
+            end, self._end = self._end, None
+            self._finish_step(end.peers, end.steps)
+            self.finished = True
+            self._report = self.report()
+            out.append(self._report)
+        return out
+
+    def _learn(self, items) -> None:
+        for m in items:
+            info = m if isinstance(m, ObjectInfo) else getattr(m, "object", None)
+            if isinstance(info, ObjectInfo):
+                self._known.setdefault(info.id, info)
+
+    # ------------------------------------------------------------------ event skipping
+
+    def _make_plan(self, obs: Observation, action: Action) -> tuple[PlanStep, ...]:
+        """Run a copy of the agent ahead while nothing would be said: its actions for the quiet
+        steps t+1, t+2, ..., each with the observation it expects (the world checks it)."""
+        team = getattr(self.agent, "team", None)
+        clone = copy.deepcopy(self.agent, {id(team): team} if team is not None else None)
+        clone.communicate(obs.t, [])
+        if clone.outbox():
+            return ()
+        pos = self._next_position(obs.position, action, obs.t)
+        plan = []
+        for s in range(obs.t + 1, obs.t + 1 + min(self.lookahead, self._horizon)):
+            reads = self._reads_sensor(clone)
+            sensed = self._predict_sensed(pos, s) if reads else ()
+            o = Observation(self.me, s, pos, tuple(self._known[i] for i in sensed))
+            act = clone.act(o)
+            if clone.outbox():
+                break
+            plan.append(_plan_step(o, act, reads))
+            clone.communicate(s, [])
+            pos = self._next_position(pos, act, s)
+        return tuple(plan)
+
+    def _reads_sensor(self, agent) -> bool:
+        # CcpAgent looks at its sensor only while searching; for any other agent class assume it
+        # always does (the world then also compares what is sensed: slower, never wrong).
+        if type(agent).act is CcpAgent.act:
+            return agent.state is GlobalState.SEARCHING
+        return True
+
+    def _scheduled(self) -> dict[int, ScheduleEntry | object]:
+        comm = getattr(self.agent, "comm", None)
+        return {a.object: a for a in getattr(comm, "schedule", ())}
+
+    def _next_position(self, pos, action: Action, t: int):
+        if action.kind is ActionKind.MOVE:
+            return move(pos, action.direction)
+        if action.kind is ActionKind.CARRY:
+            # Planned = executed: the group is complete from the assignment's start on.
+            a = self._scheduled().get(action.object)
+            if a is not None and t >= a.start:
+                return move(pos, action.direction)
+        return pos
+
+    def _predict_sensed(self, pos, s: int) -> tuple[int, ...]:
+        """Known objects expected at their original cell in the 3×3 block at step ``s``."""
+        sched = self._scheduled()
+        by_cell: dict[tuple[int, int], list[int]] = {}
+        for info in self._known.values():
+            a = sched.get(info.id)
+            if a is None or a.start >= s:
+                by_cell.setdefault(info.location, []).append(info.id)
+        out: list[int] = []
+        for dx, dy in _SENSE:
+            ids = by_cell.get((pos[0] + dx, pos[1] + dy))
+            if ids:
+                out.extend(sorted(ids))
+        return tuple(out)
+
+    # ------------------------------------------------------------------ end of run
+
+    def report(self) -> AgentReport:
+        comm = getattr(self.agent, "comm", None)
+        schedule = tuple(ScheduleEntry(a.object, tuple(a.agents), a.start, a.finish)
+                         for a in getattr(comm, "schedule", ()))
+        found = tuple((int(k), int(v)) for k, v in getattr(comm, "found_at", {}).items())
+        protocol = self.agent.protocol
+        # As ost_ros.simulator.finish_result: CCP agents agree on the schedule, HCP on the groups.
+        view = getattr(comm, "groups", None) if protocol == "hcp" else getattr(comm, "schedule", None)
+        return AgentReport(self.me, protocol, self.trigger if protocol == "ccp" else "help",
+                           getattr(comm, "predicted_makespan", None),
+                           int(getattr(comm, "coordinations", 0)), schedule, found,
+                           tuple(getattr(self.agent, "warnings", ())), self.sent, repr(view))
+
+
+def _plan_step(obs: Observation, action: Action, reads: bool) -> PlanStep:
+    return PlanStep(obs.position, reads, tuple(o.id for o in obs.sensed) if reads else (),
+                    action.kind, tuple(action.direction), action.object, action.state)
+
+
+def _same_action(action: Action, step: PlanStep) -> bool:
+    return (action.kind is step.kind and tuple(action.direction) == tuple(step.direction)
+            and action.object == step.object and action.state == step.state)

@@ -1,0 +1,95 @@
+"""Wall time, peak memory and DDS traffic of runs over DDS, next to ``ost sim`` (not a test).
+
+    .venv/bin/python benchmarks/bench_ros.py --agents 10 20 --objects 20 --skip on off
+
+For each (N, M, skipping): generates the paper's scenario (seed 1, 500x200 unless --width/--height),
+runs ``bringup_scripts/ost_up.sh --json`` and ``simulate`` in-process, checks the results are
+identical and prints: wall time (bring-up included), summed peak RSS of all node processes
+(from /proc status VmHWM, sampled), round trips, skipped steps, protocol messages, and the DDS
+samples published (ticks + acted per round trip, batches per sender-step).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from ost_ros.bounds import lower_bound
+from ost_ros.coordination import CoordinationPolicy
+from ost_ros.model import Grid
+from ost_ros.scenario import dump_scenario, generate_scenario
+from ost_ros.simulator import simulate
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def peak_rss_mb(run_dir: Path) -> float:
+    total = 0
+    for pid_file in run_dir.glob("*.pid"):
+        if pid_file.name == "ost_up.pid":
+            continue
+        try:
+            status = Path(f"/proc/{pid_file.read_text().strip()}/status").read_text()
+        except OSError:
+            continue
+        for line in status.splitlines():
+            if line.startswith("VmHWM:"):
+                total += int(line.split()[1])
+    return total / 1024
+
+
+def bench(n: int, m: int, skip: bool, width: int, height: int, tmp: Path) -> dict:
+    scenario = generate_scenario(n, m, 1, Grid(width, height))
+    path = tmp / f"s_{n}_{m}.yaml"
+    path.write_text(dump_scenario(scenario))
+    t0 = time.perf_counter()
+    ref = simulate(scenario, "ccp", CoordinationPolicy()).to_dict()
+    sim_s = time.perf_counter() - t0
+    ref["lower_bound"] = lower_bound(scenario).value   # `ost sim` and the world node print it
+    run_dir = tmp / f"run_{n}_{m}_{int(skip)}"
+    args = ["bash", str(REPO / "bringup_scripts/ost_up.sh"), "--scenario", str(path), "--json",
+            "--run-dir", str(run_dir)] + ([] if skip else ["--no-skip"])
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    peak = 0.0
+    while proc.poll() is None:   # sample the processes' high-water marks while they live
+        peak = max(peak, peak_rss_mb(run_dir))
+        time.sleep(0.5)
+    out, err = proc.communicate()
+    wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        return {"N": n, "M": m, "skip": skip, "error": err.strip().splitlines()[-1:]}
+    stats = json.loads((run_dir / "result.json.transport.json").read_text())
+    same = json.loads(out) == ref
+    batches = stats["protocol_messages"]  # upper bound on batches: one per sender-step with messages
+    dds = stats["round_trips"] * 2 * n
+    return {"N": n, "M": m, "skip": skip, "identical": same, "wall_s": round(wall, 1),
+            "run_s": stats["wall_s"], "peak_rss_mb": round(peak), "steps": stats["steps"],
+            "round_trips": stats["round_trips"], "skipped": stats["skipped_steps"],
+            "protocol_messages": stats["protocol_messages"],
+            "dds_samples_lockstep": dds, "dds_batches_max": batches, "sim_s": round(sim_s, 2)}
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--agents", type=int, nargs="+", default=[10, 20, 50])
+    p.add_argument("--objects", type=int, nargs="+", default=[20, 200])
+    p.add_argument("--skip", choices=("on", "off"), nargs="+", default=["on", "off"])
+    p.add_argument("--width", type=int, default=500)
+    p.add_argument("--height", type=int, default=200)
+    a = p.parse_args()
+    tmp = Path(os.environ.get("TMPDIR", "/tmp")) / f"bench_ros_{os.getpid()}"
+    tmp.mkdir(parents=True, exist_ok=True)
+    for n in a.agents:
+        for m in a.objects:
+            for s in a.skip:
+                print(json.dumps(bench(n, m, s == "on", a.width, a.height, tmp)), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

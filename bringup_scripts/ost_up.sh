@@ -1,0 +1,233 @@
+#!/usr/bin/env bash
+# Start a run over DDS: one world node and N agent nodes, one process (PID) each.
+#
+#   bringup_scripts/ost_up.sh --agents N (--objects M --seed S | --scenario FILE)
+#       [--protocol ccp|hcp] [--ci K | --interval T] [--width W --height H --nmax X]
+#       [--domain-id D] [--run-dir DIR] [--json] [--no-skip] [--max-steps S]
+#       [--timeout SEC] [--background]
+#
+# Waits for discovery (the world starts once every agent has matched all its endpoints and said
+# so — counted, not slept), waits for the result, prints it (--json: the JSON of `ost sim --json`)
+# and tears everything down — also on Ctrl-C or when a process dies (naming it). Logs and PIDs go
+# to the run directory (default: a new /tmp/ost_run.XXXXXX). --background returns once the run
+# started; `bringup_scripts/ost_down.sh RUN_DIR` stops it. Default: a free ROS_DOMAIN_ID and
+# ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST unless set.
+set -uo pipefail
+
+repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+venv="${OST_VENV:-$repo/.venv}"
+bin="$venv/bin"
+me="ost_up"
+
+die() { echo "$me: error: $*" >&2; exit 2; }
+say() { echo "$me: $*" >&2; }
+
+agents="" objects="" seed="" scenario="" protocol="ccp" ci="1" interval="" width="" height="" nmax=""
+domain="${ROS_DOMAIN_ID:-}" run_dir="" json=0 skip=true max_steps=0 timeout=0 background=0
+need() { [ $# -ge 2 ] && [ -n "$2" ] || die "$1 needs a value"; }
+int() { [[ "$2" =~ ^[0-9]+$ ]] || die "$1: expected a non-negative integer, got '$2'"; }
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --agents) need "$@"; int "$1" "$2"; agents="$2"; shift 2 ;;
+    --objects) need "$@"; int "$1" "$2"; objects="$2"; shift 2 ;;
+    --seed) need "$@"; int "$1" "$2"; seed="$2"; shift 2 ;;
+    --scenario) need "$@"; scenario="$2"; shift 2 ;;
+    --protocol) need "$@"; protocol="$2"; shift 2 ;;
+    --ci) need "$@"; int "$1" "$2"; ci="$2"; shift 2 ;;
+    --interval) need "$@"; int "$1" "$2"; interval="$2"; shift 2 ;;
+    --width) need "$@"; int "$1" "$2"; width="$2"; shift 2 ;;
+    --height) need "$@"; int "$1" "$2"; height="$2"; shift 2 ;;
+    --nmax) need "$@"; int "$1" "$2"; nmax="$2"; shift 2 ;;
+    --domain-id) need "$@"; int "$1" "$2"; domain="$2"; shift 2 ;;
+    --run-dir) need "$@"; run_dir="$2"; shift 2 ;;
+    --max-steps) need "$@"; int "$1" "$2"; max_steps="$2"; shift 2 ;;
+    --timeout) need "$@"; int "$1" "$2"; timeout="$2"; shift 2 ;;
+    --json) json=1; shift ;;
+    --no-skip) skip=false; shift ;;
+    --background) background=1; shift ;;
+    -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    *) die "unknown argument '$1' (see --help)" ;;
+  esac
+done
+[ -x "$bin/world_node" ] || die "$bin/world_node not found (run bringup_scripts/setup.sh)"
+if [ -n "$scenario" ]; then
+  [ -z "$objects$seed" ] || die "--scenario excludes --objects/--seed"
+  [ -f "$scenario" ] || die "--scenario: $scenario: no such file"
+else
+  [ -n "$agents" ] && [ -n "$objects" ] && [ -n "$seed" ] \
+    || die "give --agents N --objects M --seed S, or --scenario FILE"
+fi
+[ -z "$agents" ] || [ "$agents" -ge 1 ] || die "--agents: must be at least 1"
+[ "$ci" -ge 1 ] || die "--ci: must be at least 1"
+[ -z "$domain" ] || [ "$domain" -le 232 ] || die "--domain-id: $domain is above 232"
+case "$protocol" in ccp|hcp) ;; *) die "--protocol: '$protocol' is not ccp or hcp" ;; esac
+
+# ------------------------------------------------------------------ run directory, background
+if [ -z "$run_dir" ]; then
+  run_dir="$(mktemp -d /tmp/ost_run.XXXXXX)" || die "cannot create a run directory"
+else
+  mkdir -p "$run_dir" || die "--run-dir: cannot create $run_dir"
+  [ ! -f "$run_dir/world.pid" ] || die "--run-dir: $run_dir holds a run (ost_down.sh it first)"
+fi
+run_dir="$(cd "$run_dir" && pwd)"
+if [ "$background" = 1 ]; then
+  args=()
+  for a in "$@"; do args+=("$a"); done
+  # Re-run this script in the background with the same options, supervising the run.
+  fwd=(--run-dir "$run_dir" --protocol "$protocol" --ci "$ci" --max-steps "$max_steps" --timeout "$timeout")
+  [ -n "$agents" ] && fwd+=(--agents "$agents")
+  [ -n "$scenario" ] && fwd+=(--scenario "$scenario")
+  [ -n "$objects" ] && fwd+=(--objects "$objects" --seed "$seed")
+  [ -n "$interval" ] && fwd+=(--interval "$interval")
+  [ -n "$width" ] && fwd+=(--width "$width")
+  [ -n "$height" ] && fwd+=(--height "$height")
+  [ -n "$nmax" ] && fwd+=(--nmax "$nmax")
+  [ -n "$domain" ] && fwd+=(--domain-id "$domain")
+  [ "$skip" = false ] && fwd+=(--no-skip)
+  [ "$json" = 1 ] && fwd+=(--json)
+  nohup "$0" "${fwd[@]}" > "$run_dir/ost_up.out" 2> "$run_dir/ost_up.log" < /dev/null &
+  echo $! > "$run_dir/ost_up.pid"
+  for _ in $(seq 1 600); do   # until the run has started (or failed)
+    grep -q "started\|error\|died" "$run_dir/ost_up.log" 2>/dev/null && break
+    sleep 0.1
+  done
+  cat "$run_dir/ost_up.log" >&2
+  echo "$run_dir"
+  exit 0
+fi
+
+# ------------------------------------------------------------------ domain and discovery range
+lock_root="/tmp/ost_domain_locks"
+mkdir -p "$lock_root"
+domain_lock=""
+if [ -z "$domain" ]; then
+  # A free domain id: take a lock directory (atomic mkdir); stale locks of dead runs are reused.
+  start=$(( (RANDOM % 90) + 10 ))
+  for k in $(seq 0 89); do
+    d=$(( (start + k) % 90 + 10 ))
+    if mkdir "$lock_root/$d" 2>/dev/null; then domain="$d"; break; fi
+    owner="$(cat "$lock_root/$d/pid" 2>/dev/null)"
+    if [ -n "$owner" ] && ! kill -0 "$owner" 2>/dev/null; then
+      rm -rf "$lock_root/$d"; mkdir "$lock_root/$d" 2>/dev/null && { domain="$d"; break; }
+    fi
+  done
+  [ -n "$domain" ] || die "no free ROS_DOMAIN_ID in 10..99 (set --domain-id)"
+  echo $$ > "$lock_root/$domain/pid"
+  domain_lock="$lock_root/$domain"
+fi
+export ROS_DOMAIN_ID="$domain"
+export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+
+# ------------------------------------------------------------------ scenario and parameters
+if [ -z "$scenario" ]; then
+  gen=(--agents "$agents" --objects "$objects" --seed "$seed")
+  [ -n "$width" ] && gen+=(--width "$width")
+  [ -n "$height" ] && gen+=(--height "$height")
+  [ -n "$nmax" ] && gen+=(--nmax "$nmax")
+  "$bin/ost" generate "${gen[@]}" -o "$run_dir/scenario.yaml" || exit 2
+  scenario="$run_dir/scenario.yaml"
+  team=0
+else
+  scenario="$(cd "$(dirname "$scenario")" && pwd)/$(basename "$scenario")"
+  team="${agents:-0}"
+fi
+ids="$("$bin/python" - "$scenario" "$team" <<'EOF'
+import sys
+from ost_ros.scenario import ScenarioError, load_scenario, with_team
+try:
+    s = load_scenario(sys.argv[1])
+    if int(sys.argv[2]):
+        s = with_team(s, int(sys.argv[2]))
+except ScenarioError as exc:
+    print(f"ost_up: error: {exc}", file=sys.stderr); sys.exit(2)
+print(" ".join(str(a.id) for a in s.agents))
+EOF
+)" || exit 2
+n="$(echo $ids | wc -w)"
+cat > "$run_dir/params.yaml" <<EOF
+/**:
+  ros__parameters:
+    scenario: "$scenario"
+    agents: $team
+    protocol: "$protocol"
+    ci: $ci
+    interval: ${interval:-0}
+EOF
+cat > "$run_dir/world_params.yaml" <<EOF
+/**:
+  ros__parameters:
+    scenario: "$scenario"
+    agents: $team
+    result_file: "$run_dir/result.json"
+    event_skipping: $skip
+    max_steps: $max_steps
+EOF
+
+# ------------------------------------------------------------------ processes and teardown
+shm_before="$(ls /dev/shm 2>/dev/null | sort)"
+declare -A names
+pids=()
+teardown() {
+  trap - INT TERM
+  for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null; done
+  for _ in $(seq 1 30); do   # up to 3 s for a clean exit (destroy_node), then SIGKILL
+    alive=0
+    for p in "${pids[@]}"; do kill -0 "$p" 2>/dev/null && alive=1; done
+    [ "$alive" = 0 ] && break
+    sleep 0.1
+  done
+  for p in "${pids[@]}"; do kill -KILL "$p" 2>/dev/null; done
+  wait 2>/dev/null
+  # Fast DDS shared-memory files that appeared during the run and no process maps any more.
+  for f in $(comm -13 <(echo "$shm_before") <(ls /dev/shm 2>/dev/null | sort)); do
+    case "$f" in fastrtps_*|sem.fastrtps_*|fast_datasharing*) ;; *) continue ;; esac
+    grep -qs "/dev/shm/$f" /proc/[0-9]*/maps || rm -f "/dev/shm/$f"
+  done
+  rm -f "$run_dir"/*.pid
+  [ -n "$domain_lock" ] && rm -rf "$domain_lock"
+}
+on_signal() { say "interrupted: stopping ${#pids[@]} processes"; teardown; exit 130; }
+trap on_signal INT TERM
+
+t0=$(date +%s.%N)
+"$bin/world_node" --ros-args --params-file "$run_dir/world_params.yaml" > "$run_dir/world.log" 2>&1 &
+pids+=($!); names[$!]="world"; echo $! > "$run_dir/world.pid"
+for i in $ids; do
+  "$bin/agent_node" --ros-args --params-file "$run_dir/params.yaml" -p "agent_id:=$i" \
+    > "$run_dir/agent_$i.log" 2>&1 &
+  pids+=($!); names[$!]="agent_$i"; echo $! > "$run_dir/agent_$i.pid"
+done
+say "started world + $n agents (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, run dir $run_dir)"
+
+started=0
+while :; do
+  if [ "$started" = 0 ] && grep -q "agents ready; step 0" "$run_dir/world.log" 2>/dev/null; then
+    started=1
+    say "discovery complete: $n agents matched after $(echo "$(date +%s.%N) - $t0" | bc 2>/dev/null || echo '?') s"
+  fi
+  if [ -f "$run_dir/result.json" ] && ! kill -0 "${pids[0]}" 2>/dev/null; then
+    break
+  fi
+  for p in "${pids[@]}"; do
+    if ! kill -0 "$p" 2>/dev/null; then
+      wait "$p"; rc=$?
+      if [ "$rc" != 0 ] || [ ! -f "$run_dir/result.json" ]; then
+        say "${names[$p]} (pid $p) died with exit code $rc before the result; see $run_dir/${names[$p]}.log"
+        tail -n 3 "$run_dir/${names[$p]}.log" >&2
+        teardown; exit 1
+      fi
+    fi
+  done
+  if [ "$timeout" -gt 0 ] && [ "$(echo "$(date +%s.%N) - $t0 > $timeout" | bc)" = 1 ]; then
+    say "timeout: no result after $timeout s; stopping"
+    teardown; exit 1
+  fi
+  sleep 0.1
+done
+teardown
+if [ "$json" = 1 ]; then
+  "$bin/python" -m world_node.report "$run_dir/result.json" --json
+else
+  "$bin/python" -m world_node.report "$run_dir/result.json"
+  say "logs and result in $run_dir"
+fi

@@ -1,0 +1,166 @@
+"""Message schemas of the ROS runtime (world node ↔ agent nodes), on top of the protocol messages.
+
+- :class:`Ready`: an agent is up and has matched every endpoint it needs (discovery done);
+- :class:`Tick` (world → one agent): the observation of step t, and which peers broadcast in the
+  previous lockstep step (the count the agent's barrier waits for);
+- :class:`Acted` (agent → world): the action of step t, how many protocol messages the agent
+  broadcast in step t, and (event skipping) its plan for the following quiet steps;
+- :class:`StepMessages` (agent → all agents): the sender's protocol messages of step t, sent only
+  when there are any. An agent runs its comm module for step t once it holds the batch of every
+  sender the world listed — a counting barrier whose count the world supplies, so quiet steps
+  cost no agent-to-agent traffic;
+- :class:`Resend`: recovery — an agent whose tick waited too long for some peers' batches asks
+  them to publish those again (the world likewise re-sends a tick whose action does not come);
+- :class:`RunEnd`: the world's clock stopped (every object delivered and every agent home, or
+  the step limit); agents answer with an :class:`AgentReport` (what only agents know: the
+  schedule they hold, predicted makespan, coordinations, warnings), from which the world builds
+  the same result as the in-process simulator.
+
+Like :mod:`ost_msgs_py.messages`: frozen dataclasses, a ``TYPE`` tag and a ``version`` field.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+from ost_msgs_py.messages import Action, ActionKind, Cell, Observation
+
+RUNTIME_VERSION = 1
+
+
+class ProtocolViolation(ValueError):
+    """A well-formed message that does not fit the run (unknown sender, wrong step, duplicate)."""
+
+
+class AnyMessage:
+    """Type marker for a field holding any registered message (encoded with its ``type`` tag)."""
+
+
+@dataclass(frozen=True)
+class Ready:
+    """Agent ``agent`` is ready: its node runs and all its endpoints are matched."""
+
+    TYPE: ClassVar[str] = "ready"
+    agent: int
+    protocol: str
+    scenario: str               # fingerprint of the scenario the agent loaded (must match the world's)
+    version: int = RUNTIME_VERSION
+
+
+@dataclass(frozen=True)
+class Tick:
+    """World → agent: observe and act for step ``t``.
+
+    ``peers``: the agents that broadcast protocol messages in step ``last`` (the previous step the
+    agent acted on itself); the agent first runs its comm module for ``last`` with exactly those
+    batches. Steps ``last+1 .. t-1`` were skipped: the world executed the agent's own plan for them
+    (event skipping) and the agent replays that plan locally.
+    """
+
+    TYPE: ClassVar[str] = "tick"
+    t: int
+    last: int
+    observation: Observation
+    peers: tuple[int, ...] = ()
+    version: int = RUNTIME_VERSION
+
+
+@dataclass(frozen=True)
+class PlanStep:
+    """One step of an agent's plan: what it expects to observe and what it will then do.
+
+    ``sensed`` is compared with the world's observation only when ``searching`` (other states
+    never look at the sensor); ``position`` is always compared.
+    """
+
+    position: Cell
+    searching: bool
+    sensed: tuple[int, ...]
+    kind: ActionKind
+    direction: Cell
+    object: int
+    state: str
+
+
+@dataclass(frozen=True)
+class Acted:
+    """Agent → world: the action of step ``action.t``.
+
+    ``sent``: how many protocol messages the agent broadcast in that step (0: no batch is sent).
+    ``plan``: the agent's actions for steps t+1, t+2, ... provided nobody broadcasts anything and
+    its observations are as expected (empty when event skipping is off).
+    """
+
+    TYPE: ClassVar[str] = "acted"
+    action: Action
+    sent: int
+    plan: tuple[PlanStep, ...] = ()
+    version: int = RUNTIME_VERSION
+
+
+@dataclass(frozen=True)
+class StepMessages:
+    """The sender's protocol messages of step ``t``, in the order its outbox produced them."""
+
+    TYPE: ClassVar[str] = "step_messages"
+    sender: int
+    t: int
+    messages: tuple[AnyMessage, ...] = ()
+    version: int = RUNTIME_VERSION
+
+
+@dataclass(frozen=True)
+class Resend:
+    """Agent → agents: a tick has waited too long for the step messages of ``peers`` for step
+    ``t``; each of them publishes its batch of step ``t`` again (recovery from a lost sample)."""
+
+    TYPE: ClassVar[str] = "resend"
+    sender: int
+    t: int
+    peers: tuple[int, ...]
+    version: int = RUNTIME_VERSION
+
+
+@dataclass(frozen=True)
+class RunEnd:
+    """The world stopped after ``steps`` steps. Like a :class:`Tick` for step ``steps`` without an
+    observation: the agent finishes step ``last`` (comm module with ``peers``' batches), replays
+    any skipped steps, then sends its :class:`AgentReport`."""
+
+    TYPE: ClassVar[str] = "run_end"
+    steps: int
+    last: int
+    completed: bool
+    peers: tuple[int, ...] = ()
+    version: int = RUNTIME_VERSION
+
+
+@dataclass(frozen=True)
+class ScheduleEntry:
+    """One planned object of the global schedule (mirror of ``ost_ros.coordination.Assignment``)."""
+
+    object: int
+    agents: tuple[int, ...]
+    start: int
+    finish: int
+
+
+@dataclass(frozen=True)
+class AgentReport:
+    """What an agent knows at the end of the run."""
+
+    TYPE: ClassVar[str] = "agent_report"
+    agent: int
+    protocol: str
+    trigger: str
+    predicted_makespan: int | None
+    coordinations: int
+    schedule: tuple[ScheduleEntry, ...]
+    found: tuple[tuple[int, int], ...]     # (object id, step found), in the agent's order
+    warnings: tuple[str, ...]
+    messages: int                          # protocol messages this agent sent
+    view: str = ""                         # what agents must agree on (CCP: schedule, HCP: groups)
+    version: int = RUNTIME_VERSION
+
+
+RUNTIME_MESSAGES: tuple[type, ...] = (Ready, Tick, Acted, StepMessages, Resend, RunEnd, AgentReport)

@@ -1,0 +1,137 @@
+"""Running real DDS processes from tests: bring-up through ost_up.sh, direct node processes with
+an explicit ROS_DOMAIN_ID, and always a teardown (SIGTERM, then SIGKILL) of what was started."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+BIN = Path(sys.executable).parent
+UP = REPO / "bringup_scripts" / "ost_up.sh"
+
+
+def ros_env(domain: int) -> dict[str, str]:
+    env = dict(os.environ)
+    env["ROS_DOMAIN_ID"] = str(domain)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["OST_VENV"] = str(BIN.parent)
+    return env
+
+
+def free_domain() -> int:
+    """A domain id no other test run on this machine holds (lock directories, as ost_up.sh)."""
+    root = Path("/tmp/ost_domain_locks")
+    root.mkdir(exist_ok=True)
+    start = os.getpid() % 90
+    for k in range(90):
+        d = (start + k) % 90 + 10
+        lock = root / str(d)
+        try:
+            lock.mkdir()
+        except FileExistsError:
+            owner = (lock / "pid").read_text().strip() if (lock / "pid").exists() else ""
+            if owner.isdigit() and not Path(f"/proc/{owner}").exists():
+                (lock / "pid").unlink(missing_ok=True)
+                lock.rmdir()
+                lock.mkdir()
+            else:
+                continue
+        (lock / "pid").write_text(str(os.getpid()))
+        return d
+    raise RuntimeError("no free ROS_DOMAIN_ID in 10..99")
+
+
+def release_domain(domain: int) -> None:
+    lock = Path("/tmp/ost_domain_locks") / str(domain)
+    (lock / "pid").unlink(missing_ok=True)
+    try:
+        lock.rmdir()
+    except OSError:
+        pass
+
+
+def ost_up(*args: str, timeout: float = 240) -> subprocess.CompletedProcess:
+    """Run ost_up.sh (it picks its own free domain) and return its completed process. On a
+    time-out the whole process group is ended (ost_up.sh's own teardown first), never orphaned."""
+    env = dict(os.environ)
+    env.pop("ROS_DOMAIN_ID", None)
+    env["OST_VENV"] = str(BIN.parent)
+    p = subprocess.Popen(["bash", str(UP), *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True, env=env, start_new_session=True)
+    try:
+        out, err = p.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGTERM)          # ost_up.sh tears its nodes down on TERM
+        try:
+            out, err = p.communicate(timeout=15)
+        except subprocess.TimeoutExpired:
+            os.killpg(p.pid, signal.SIGKILL)
+            out, err = p.communicate()
+        raise AssertionError(f"ost_up.sh {' '.join(args)} timed out after {timeout} s:\n{err[-3000:]}")
+    return subprocess.CompletedProcess(p.args, p.returncode, out, err)
+
+
+class Processes:
+    """Node processes of one test: started with logs in ``run_dir``, always torn down."""
+
+    def __init__(self, run_dir: Path, domain: int):
+        self.run_dir = run_dir
+        self.domain = domain
+        self.procs: dict[str, subprocess.Popen] = {}
+        self.shm_before = set(os.listdir("/dev/shm"))
+
+    def start(self, name: str, exe: str, *ros_args: str) -> subprocess.Popen:
+        log = open(self.run_dir / f"{name}.log", "w")
+        p = subprocess.Popen([str(BIN / exe), "--ros-args", *ros_args], stdout=log,
+                             stderr=subprocess.STDOUT, env=ros_env(self.domain),
+                             start_new_session=True)
+        self.procs[name] = p
+        return p
+
+    def log(self, name: str) -> str:
+        return (self.run_dir / f"{name}.log").read_text()
+
+    def wait_for(self, name: str, text: str, timeout: float = 30) -> None:
+        end = time.monotonic() + timeout
+        while text not in self.log(name):
+            p = self.procs[name]
+            assert p.poll() is None, f"{name} exited ({p.returncode}):\n{self.log(name)[-2000:]}"
+            assert time.monotonic() < end, f"{name}: no '{text}' after {timeout} s:\n{self.log(name)[-2000:]}"
+            time.sleep(0.05)
+
+    def stop(self) -> None:
+        for p in self.procs.values():
+            if p.poll() is None:
+                p.send_signal(signal.SIGTERM)
+        end = time.monotonic() + 5
+        for p in self.procs.values():
+            try:
+                p.wait(max(0.1, end - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+        for f in set(os.listdir("/dev/shm")) - self.shm_before:
+            if f.startswith(("fastrtps_", "sem.fastrtps_", "fast_datasharing")):
+                try:
+                    os.unlink(f"/dev/shm/{f}")
+                except OSError:
+                    pass
+
+
+def reference(scenario, protocol: str, policy) -> dict:
+    """What ``ost sim --json`` prints for the scenario: the in-process result and its bound."""
+    from ost_ros.bounds import lower_bound
+    from ost_ros.simulator import simulate
+
+    expected = simulate(scenario, protocol, policy).to_dict()
+    expected["lower_bound"] = lower_bound(scenario).value
+    return expected
+
+
+def result_json(stdout: str) -> dict:
+    return json.loads(stdout)

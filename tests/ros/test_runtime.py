@@ -1,0 +1,152 @@
+"""The lockstep protocol without DDS: world and agent runtimes wired directly, every message
+through the codec. Skipping on and off give exactly ``simulate``'s result (no transport here;
+the DDS tests run the same runtimes in real processes)."""
+import dataclasses
+
+import pytest
+
+from agent_node.runtime import AgentRuntime, ProtocolViolation
+from ost_msgs_py import codec
+from ost_msgs_py.runtime import Acted, AgentReport, Resend, RunEnd, StepMessages
+from ost_ros.coordination import CoordinationPolicy
+from ost_ros.model import Grid
+from ost_ros.scenario import generate_scenario
+from ost_ros.simulator import PROTOCOLS, make_agents, simulate
+from world_node.runtime import WorldRuntime
+
+
+def wire(msg):
+    return codec.decode(codec.encode(msg))
+
+
+def run(scenario, protocol, policy, lookahead, skipping):
+    ids = tuple(a.id for a in scenario.agents)
+    rts = {a.id: AgentRuntime(a, ids, policy.name, lookahead)
+           for a in make_agents(scenario, protocol, policy)}
+    world = WorldRuntime(scenario, skipping=skipping)
+    nxt = world.start()
+    while True:
+        for r in rts.values():
+            if isinstance(nxt, RunEnd):
+                r.accept_end(wire(nxt))
+            else:
+                r.accept_tick(wire(nxt[ids.index(r.me)]))
+        out = [m for r in rts.values() for m in r.progress()]
+        for b in (m for m in out if isinstance(m, StepMessages)):
+            for r in rts.values():
+                r.accept_batch(wire(b))
+        for m in out:
+            if isinstance(m, Acted):
+                world.accept_acted(wire(m))
+            elif isinstance(m, AgentReport):
+                world.accept_report(wire(m))
+        if isinstance(nxt, RunEnd):
+            return world.result(), world
+        nxt = world.advance()
+
+
+CASES = [(4, 6, 1, 30, 12, 1), (4, 6, 1, 30, 12, 6), (10, 15, 2, 40, 20, 1), (6, 12, 5, 36, 18, 3)]
+
+
+@pytest.mark.parametrize("protocol", PROTOCOLS)
+@pytest.mark.parametrize("n, m, seed, w, h, ci", CASES)
+def test_skipping_on_and_off_equal_simulate(protocol, n, m, seed, w, h, ci):
+    scenario = generate_scenario(n, m, seed, Grid(w, h), 4)
+    policy = CoordinationPolicy(ci=ci)
+    expected = simulate(scenario, protocol, policy).to_dict()
+    plain, w0 = run(scenario, protocol, policy, 0, False)
+    skipping, w1 = run(scenario, protocol, policy, 64, True)
+    assert plain.to_dict() == expected
+    assert skipping.to_dict() == expected
+    assert w0.skipped == 0 and w0.round_trips == expected["steps"]
+    assert w1.round_trips + w1.skipped == expected["steps"]
+    if protocol == "ccp":   # CCP runs are mostly quiet: far fewer round trips
+        assert w1.round_trips * 3 < w0.round_trips
+
+
+def test_out_of_turn_messages_are_refused():
+    scenario = generate_scenario(2, 2, 1, Grid(12, 6), 2)
+    ids = (0, 1)
+    agents = make_agents(scenario, "ccp", CoordinationPolicy())
+    rt = AgentRuntime(agents[0], ids, "CI=1")
+    world = WorldRuntime(scenario)
+    ticks = world.start()
+    with pytest.raises(ProtocolViolation, match="this is agent 0"):
+        rt.accept_tick(ticks[1])
+    rt.accept_tick(ticks[0])
+    with pytest.raises(ProtocolViolation, match="not in the team"):
+        rt.accept_batch(StepMessages(7, 0, ()))
+    (acted,) = rt.progress()
+    world.accept_acted(acted)
+    world.accept_acted(acted)              # the same answer again (a resend): ignored
+    assert world.acted_agents() == (0,)
+    changed = dataclasses.replace(acted, sent=acted.sent + 1)
+    with pytest.raises(ProtocolViolation, match="second, different action"):
+        world.accept_acted(changed)
+    with pytest.raises(ProtocolViolation, match="before the run ended"):
+        world.accept_report(rt.report())
+
+
+def run_lossy(scenario, protocol, policy, lose):
+    """Like ``run``, but ``lose(k)`` drops the k-th delivery; on a stall the recovery the nodes do
+    on their timers runs: the world re-sends ticks / run_end, agents ask for missing batches."""
+    ids = tuple(a.id for a in scenario.agents)
+    rts = {a.id: AgentRuntime(a, ids, policy.name, 64) for a in make_agents(scenario, protocol, policy)}
+    world = WorldRuntime(scenario, skipping=True)
+    count = iter(range(10**9))
+    lost = 0
+
+    def deliver(msg):
+        nonlocal lost
+        if lose(next(count)):
+            lost += 1
+            return None
+        return wire(msg)
+
+    def send(nxt, only):
+        for r in rts.values():
+            if r.me in only:
+                m = deliver(nxt if isinstance(nxt, RunEnd) else nxt[ids.index(r.me)])
+                if m is not None:
+                    (r.accept_end if isinstance(m, RunEnd) else r.accept_tick)(m)
+
+    nxt = world.start()
+    send(nxt, ids)
+    for _ in range(10**6):
+        out = [m for r in rts.values() for m in r.progress()]
+        for m in out:
+            if isinstance(m, StepMessages):
+                for r in rts.values():
+                    if (d := deliver(m)) is not None:
+                        r.accept_batch(d)
+            elif (d := deliver(m)) is not None:
+                (world.accept_report if isinstance(d, AgentReport) else world.accept_acted)(d)
+        if isinstance(nxt, RunEnd):
+            if not world.missing_reports:
+                return world.result(), lost
+        elif world.step_complete:
+            nxt = world.advance()
+            send(nxt, ids)
+            continue
+        if out:
+            continue
+        # Stalled: what the nodes' timers do after RESEND_S.
+        send(nxt, world.missing_reports if isinstance(nxt, RunEnd)
+             else [i for i in ids if i not in world.acted_agents()])
+        for r in rts.values():
+            held = r.held()
+            if held is not None and held[1]:
+                for peer in rts.values():
+                    if (req := deliver(Resend(r.me, r.last, held[1]))) is not None:
+                        peer.accept_resend(req)
+    raise AssertionError("no progress")
+
+
+@pytest.mark.parametrize("protocol", PROTOCOLS)
+def test_lost_samples_are_recovered_and_change_nothing(protocol):
+    # One delivery in five is lost (ticks, answers, batches, run_end, reports, resend requests).
+    scenario = generate_scenario(5, 8, 4, Grid(30, 12), 3)
+    policy = CoordinationPolicy(ci=2)
+    result, lost = run_lossy(scenario, protocol, policy, lambda k: k % 5 == 3)
+    assert lost > 50
+    assert result.to_dict() == simulate(scenario, protocol, policy).to_dict()

@@ -1,0 +1,267 @@
+"""``world_node``: the grid truth of a run, stepping N agent nodes in lockstep over DDS.
+
+    world_node --ros-args -p scenario:=run.yaml -p result_file:=/tmp/result.json
+
+Parameters: ``scenario`` (YAML), ``agents`` (team size override, 0 = the file's), ``max_steps``
+(0 = the simulator's step limit), ``result_file`` (JSON, same as ``ost sim --json``; '' = none),
+``event_skipping`` (execute agents' plans for quiet steps), ``marker_every`` (publish
+/ost/markers every k ticks; 0 = never), ``exit_when_done`` (leave once the agents are gone).
+
+Publishes /clock (sim time: step t = t seconds), /ost/markers, each agent's tick, /ost/run_end and
+the result on /ost/result (transient local). Invalid or out-of-turn messages are dropped with a
+throttled warning naming the sender; illegal actions are rejected by ``World.apply`` with a
+reason that goes into the result.
+"""
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import rclpy
+from builtin_interfaces.msg import Time
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
+from visualization_msgs.msg import MarkerArray
+
+from agent_node import transport as tp
+from ost_msgs_py.runtime import Acted, AgentReport, Ready, RunEnd
+from ost_ros.bounds import lower_bound
+from ost_ros.scenario import ScenarioError, load_scenario, with_team
+from world_node.markers import world_markers
+from world_node.runtime import ProtocolViolation, WorldRuntime
+
+# After the result is out, wait this long at most for the agents to leave before exiting.
+LINGER_S = 10.0
+# A step taking longer than this is reported (who has not acted yet).
+STALL_S = 5.0
+
+
+class WorldNode(Node):
+    def __init__(self):
+        super().__init__(tp.WORLD_NODE, namespace=tp.NAMESPACE)
+        for name, default in (("scenario", ""), ("agents", 0), ("max_steps", 0), ("result_file", ""),
+                              ("event_skipping", True), ("marker_every", 1), ("exit_when_done", True)):
+            self.declare_parameter(name, default)
+        p = {n: self.get_parameter(n).value for n in ("scenario", "agents", "max_steps", "result_file",
+                                                       "event_skipping", "marker_every",
+                                                       "exit_when_done")}
+        if not p["scenario"]:
+            raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
+        for name in ("agents", "max_steps", "marker_every"):
+            if p[name] < 0:
+                raise ParameterError(f"{name}: {p[name]} must not be negative")
+        try:
+            scenario = load_scenario(p["scenario"])
+            if p["agents"]:
+                scenario = with_team(scenario, p["agents"])
+        except ScenarioError as exc:
+            raise ParameterError(f"scenario: {exc}") from None
+        self.scenario = scenario
+        self.fingerprint = tp.scenario_fingerprint(scenario)
+        self.rt = WorldRuntime(scenario, p["max_steps"] or None, p["event_skipping"])
+        self.result_file = p["result_file"]
+        self.marker_every = p["marker_every"]
+        self.exit_when_done = p["exit_when_done"]
+        self.ids = self.rt.ids
+        self.throttle = tp.Throttle(self.get_logger())
+        self.ready: dict[int, Ready] = {}
+        self.started = False
+        self.done = False
+        self.result_at: float | None = None
+        self.ticks_sent = 0
+        self.t_start = 0.0
+        self.last_progress = self.stall_since = time.monotonic()
+        self.last_sent: list[String] = []      # what the current step published, for resend()
+
+        q = tp.LOCKSTEP_QOS
+        self.pub_clock = self.create_publisher(Clock, tp.CLOCK, tp.LATEST_QOS)
+        self.pub_markers = self.create_publisher(MarkerArray, tp.MARKERS, tp.LATEST_QOS)
+        self.pub_tick = {i: self.create_publisher(String, tp.tick_topic(i), q) for i in self.ids}
+        self.pub_end = self.create_publisher(String, tp.RUN_END, tp.LATCHED_ALL_QOS)
+        self.pub_result = self.create_publisher(String, tp.RESULT, tp.RESULT_QOS)
+        self.sub_acted = self.create_subscription(String, tp.ACTED, self.on_acted, q)
+        self.sub_ready = self.create_subscription(String, tp.READY, self.on_ready, tp.LATCHED_ALL_QOS)
+        self.sub_report = self.create_subscription(String, tp.REPORTS, self.on_report,
+                                                   tp.LATCHED_ALL_QOS)
+        self.timer = self.create_timer(0.1, self.on_timer)
+        self.publish_state(self.rt.world.t)
+        self.get_logger().info(f"waiting for {len(self.ids)} agents ({self.fingerprint})")
+
+    # ------------------------------------------------------------------ start
+
+    def on_ready(self, msg: String) -> None:
+        r = tp.decode_or_warn(msg, tp.READY, Ready, self.throttle)
+        if r is None:
+            return
+        if r.agent not in self.ids:
+            self.throttle.warn(tp.READY, f"agent {r.agent}", "not in the scenario's team")
+        elif r.scenario != self.fingerprint:
+            self.throttle.warn(tp.READY, f"agent {r.agent}",
+                               f"loaded scenario {r.scenario}, the world runs {self.fingerprint}")
+        else:
+            self.ready[r.agent] = r
+        self.try_start()
+
+    def try_start(self) -> None:
+        if self.started or len(self.ready) < len(self.ids):
+            return
+        if any(p.get_subscription_count() < 1 for p in self.pub_tick.values()) \
+                or self.sub_acted.get_publisher_count() < len(self.ids):
+            return  # the timer tries again
+        protocols = {r.protocol for r in self.ready.values()}
+        if len(protocols) > 1:
+            self.throttle.warn(tp.READY, "agents", f"mixed protocols {sorted(protocols)}")
+        self.started = True
+        self.t_start = time.monotonic()
+        self.get_logger().info(f"all {len(self.ids)} agents ready; step 0")
+        self.send(self.rt.start())
+
+    def on_timer(self) -> None:
+        now = time.monotonic()
+        if not self.started:
+            self.try_start()
+            return
+        if self.result_at is not None:
+            # Leave once every agent is gone (it has read the result), or after a while.
+            gone = self.sub_acted.get_publisher_count() == 0
+            if self.exit_when_done and (gone or now - self.result_at > LINGER_S):
+                self.done = True
+            return
+        if now - self.last_progress > tp.RESEND_S:
+            self.resend()
+        if self.rt.ended is None and now - self.stall_since > STALL_S:
+            # Say who the barrier waits for: a silent stall is the worst failure to debug.
+            missing = [i for i in self.ids if i not in self.rt.acted_agents()]
+            self.throttle.warn(tp.ACTED, "the world",
+                               f"step {self.rt.world.t} stalled for {STALL_S:g} s; no action yet "
+                               f"from agents {missing}")
+            self.stall_since = now
+
+    # ------------------------------------------------------------------ stepping
+
+    def send(self, nxt) -> None:
+        self.last_progress = self.stall_since = time.monotonic()
+        t = self.rt.world.t
+        self.publish_state(t)
+        if isinstance(nxt, RunEnd):
+            self.last_sent = [tp.to_string(nxt)]
+            self.pub_end.publish(self.last_sent[0])
+            self.get_logger().info(f"run ended at step {nxt.steps} (completed: {nxt.completed}); "
+                                   "collecting reports")
+            return
+        self.last_sent = []
+        for tick in nxt:
+            msg = tp.to_string(tick)
+            self.last_sent.append(msg)
+            self.pub_tick[tick.observation.agent].publish(msg)
+        self.ticks_sent += 1
+
+    def resend(self) -> None:
+        """A step waits too long: publish its ticks (to agents that have not acted) or the
+        run_end again. Agents answer a tick they already answered by re-sending their answer."""
+        self.last_progress = time.monotonic()
+        if self.rt.ended is not None:
+            if self.rt.missing_reports and self.last_sent:
+                self.pub_end.publish(self.last_sent[0])
+            return
+        acted = set(self.rt.acted_agents())
+        for agent, msg in zip(self.ids, self.last_sent):
+            if agent not in acted:
+                self.pub_tick[agent].publish(msg)
+
+    def publish_state(self, t: int) -> None:
+        stamp = Time(sec=t, nanosec=0)
+        self.pub_clock.publish(Clock(clock=stamp))
+        if self.marker_every and (self.ticks_sent % self.marker_every == 0 or self.rt.ended):
+            self.pub_markers.publish(world_markers(self.rt.world, stamp))
+
+    def on_acted(self, msg: String) -> None:
+        a = tp.decode_or_warn(msg, tp.ACTED, Acted, self.throttle)
+        if a is None:
+            return
+        if not self.started:
+            self.throttle.warn(tp.ACTED, f"agent {a.action.agent}", "action before the run started")
+            return
+        try:
+            self.rt.accept_acted(a)
+        except ProtocolViolation as exc:
+            self.throttle.warn(tp.ACTED, f"agent {a.action.agent}", str(exc))
+            return
+        if self.rt.step_complete:
+            self.send(self.rt.advance())
+
+    # ------------------------------------------------------------------ end
+
+    def on_report(self, msg: String) -> None:
+        r = tp.decode_or_warn(msg, tp.REPORTS, AgentReport, self.throttle)
+        if r is None:
+            return
+        try:
+            self.rt.accept_report(r)
+        except ProtocolViolation as exc:
+            self.throttle.warn(tp.REPORTS, f"agent {r.agent}", str(exc))
+            return
+        if not self.rt.missing_reports and self.result_at is None:
+            self.finish()
+
+    def finish(self) -> None:
+        result = self.rt.result()
+        result.lower_bound = lower_bound(self.scenario).value   # as `ost sim` prints it
+        text = json.dumps(result.to_dict(), indent=1)
+        if self.result_file:
+            try:
+                Path(self.result_file).write_text(text + "\n")
+            except OSError as exc:
+                self.get_logger().error(f"result_file: cannot write {self.result_file} ({exc.strerror})")
+        self.pub_result.publish(String(data=text))
+        self.result_at = time.monotonic()
+        wall = self.result_at - self.t_start
+        stats = {"wall_s": round(wall, 3), "steps": self.rt.world.t,
+                 "round_trips": self.rt.round_trips, "skipped_steps": self.rt.skipped,
+                 "protocol_messages": self.rt.messages}
+        self.get_logger().info(f"result: makespan {result.makespan}, completed {result.completed}; "
+                               f"transport {json.dumps(stats)}")
+        if self.result_file:
+            try:
+                Path(self.result_file + ".transport.json").write_text(json.dumps(stats) + "\n")
+            except OSError:
+                pass
+
+
+class ParameterError(ValueError):
+    """A bad node parameter; the text names it."""
+
+
+def main(args=None) -> int:
+    rclpy.init(args=args)
+    node = None
+    code = 0
+    try:
+        node = WorldNode()
+        while rclpy.ok() and not node.done:
+            rclpy.spin_once(node, timeout_sec=0.5)
+        code = 0 if node.rt.ended is not None and node.rt.ended.completed else 1
+    except ParameterError as exc:
+        print(f"world_node: error: {exc}", file=sys.stderr)
+        code = 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        code = 130
+    except Exception as exc:
+        if "Parameter" in type(exc).__name__:   # wrong parameter type from --ros-args
+            print(f"world_node: error: {exc}", file=sys.stderr)
+            code = 2
+        else:
+            raise
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())
