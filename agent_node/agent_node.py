@@ -136,9 +136,10 @@ class AgentRunner:
                 self.pub_resend.publish(tp.to_string(Resend(self.rt.me, self.rt.last, held[1])))
                 self.resent_at = now
             if now - self.held_since > STALL_S:
-                self.throttle.warn(tp.STEP_MESSAGES, "the barrier",
-                                   f"tick {held[0]} held for {STALL_S:g} s; no step messages yet "
-                                   f"from agents {list(held[1])}")
+                self.throttle.note(("stall", "barrier"),
+                                   f"tick {held[0]} held for {STALL_S:g} s: no step messages yet "
+                                   f"from agents {list(held[1])} (asked again every "
+                                   f"{tp.RESEND_S:g} s)")
                 self.held_since = now
         else:
             self.held_since = None

@@ -94,7 +94,11 @@ class Throttle:
         self._muted: dict[tuple[str, str], int] = {}
 
     def warn(self, topic: str, sender: str, text: str) -> None:
-        key = (topic, sender)
+        """A dropped message: names the topic and the sender."""
+        self.note((topic, sender), f"dropped message on {topic} from {sender}: {text}")
+
+    def note(self, key: tuple[str, str], text: str) -> None:
+        """Any warning, throttled per ``key``."""
         now = time.monotonic()
         if now - self._last.get(key, -1e9) < self.period:
             self._muted[key] = self._muted.get(key, 0) + 1
@@ -102,7 +106,7 @@ class Throttle:
         muted = self._muted.pop(key, 0)
         self._last[key] = now
         more = f" ({muted} more suppressed)" if muted else ""
-        self.logger.warning(f"dropped message on {topic} from {sender}: {text}{more}")
+        self.logger.warning(f"{text}{more}")
 
 
 def decode_or_warn(msg: String, topic: str, expected, throttle: Throttle):

@@ -136,9 +136,9 @@ class WorldNode(Node):
         if self.rt.ended is None and now - self.stall_since > STALL_S:
             # Say who the barrier waits for: a silent stall is the worst failure to debug.
             missing = [i for i in self.ids if i not in self.rt.acted_agents()]
-            self.throttle.warn(tp.ACTED, "the world",
-                               f"step {self.rt.world.t} stalled for {STALL_S:g} s; no action yet "
-                               f"from agents {missing}")
+            self.throttle.note(("stall", "world"),
+                               f"step {self.rt.world.t} stalled for {STALL_S:g} s: no action yet "
+                               f"from agents {missing} (ticks re-sent every {tp.RESEND_S:g} s)")
             self.stall_since = now
 
     # ------------------------------------------------------------------ stepping

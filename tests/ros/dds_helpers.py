@@ -19,6 +19,7 @@ def ros_env(domain: int) -> dict[str, str]:
     env = dict(os.environ)
     env["ROS_DOMAIN_ID"] = str(domain)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env.setdefault("FASTDDS_BUILTIN_TRANSPORTS", "UDPv4")   # as ost_up.sh (docs/ros.md)
     env["OST_VENV"] = str(BIN.parent)
     return env
 
