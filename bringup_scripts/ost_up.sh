@@ -10,8 +10,8 @@
 # so — counted, not slept), waits for the result, prints it (--json: the JSON of `ost sim --json`)
 # and tears everything down — also on Ctrl-C or when a process dies (naming it). Logs and PIDs go
 # to the run directory (default: a new /tmp/ost_run.XXXXXX). --background returns once the run
-# started; `bringup_scripts/ost_down.sh RUN_DIR` stops it. Default: a free ROS_DOMAIN_ID,
-# ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and FASTDDS_BUILTIN_TRANSPORTS=UDPv4 unless set.
+# started; `bringup_scripts/ost_down.sh RUN_DIR` stops it. Default: a free ROS_DOMAIN_ID, and DDS
+# traffic on the loopback interface only (bringup_scripts/dds_env.sh).
 set -uo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -116,10 +116,8 @@ if [ -z "$domain" ]; then
   domain_lock="$lock_root/$domain"
 fi
 export ROS_DOMAIN_ID="$domain"
-export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
-# Fast DDS's shared-memory transport has lost all traffic to one process of a 21-process run here
-# (its port segment vanished while discovery still matched); UDP on loopback never has. See docs/ros.md.
-export FASTDDS_BUILTIN_TRANSPORTS="${FASTDDS_BUILTIN_TRANSPORTS:-UDPv4}"
+# Host-only traffic, UDP on loopback (bringup_scripts/dds_env.sh, docs/ros.md "Transport").
+. "$repo/bringup_scripts/dds_env.sh"
 
 # ------------------------------------------------------------------ scenario and parameters
 if [ -z "$scenario" ]; then

@@ -6,8 +6,7 @@ set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 venv="$(OST_SETUP_QUIET=1 bash "$repo/bringup_scripts/setup.sh" | tail -n 1)"
 cd "$repo"
-# DDS tests pick their own ROS_DOMAIN_ID per run; keep discovery on this host by default.
-export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
-# UDP on loopback, not Fast DDS shared memory (see docs/ros.md, "Transport").
-export FASTDDS_BUILTIN_TRANSPORTS="${FASTDDS_BUILTIN_TRANSPORTS:-UDPv4}"
+# DDS tests pick their own ROS_DOMAIN_ID per run; all DDS traffic stays on this host's loopback
+# interface (bringup_scripts/dds_env.sh, docs/ros.md "Transport").
+. "$repo/bringup_scripts/dds_env.sh"
 exec "$venv/bin/python" -m pytest tests "$@"

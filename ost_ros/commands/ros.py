@@ -12,7 +12,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import os
 import time
+from pathlib import Path
 
 from ost_ros.errors import UsageError
 
@@ -61,10 +63,20 @@ def register(sub) -> None:
 # ----------------------------------------------------------------------------- graph access
 
 
+def _dds_defaults() -> None:
+    """Talk DDS the way ost_up.sh's nodes do (bringup_scripts/dds_env.sh): UDP on loopback, via
+    the repository's Fast DDS profile, unless the user chose a profile of their own."""
+    profile = Path(__file__).resolve().parents[2] / "bringup_scripts" / "fastdds_localhost_udp.xml"
+    if not os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE") and profile.exists():
+        os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(profile)
+        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"   # the profile keeps it on loopback
+
+
 class _Graph:
     """An rclpy context + node for the duration of a verb."""
 
     def __enter__(self):
+        _dds_defaults()
         try:
             import rclpy
         except ImportError as exc:

@@ -15,11 +15,17 @@ BIN = Path(sys.executable).parent
 UP = REPO / "bringup_scripts" / "ost_up.sh"
 
 
+PROFILE = REPO / "bringup_scripts" / "fastdds_localhost_udp.xml"
+
+
 def ros_env(domain: int) -> dict[str, str]:
+    """The test's own domain, and DDS on loopback only, as bringup_scripts/dds_env.sh sets it."""
     env = dict(os.environ)
     env["ROS_DOMAIN_ID"] = str(domain)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    env.setdefault("FASTDDS_BUILTIN_TRANSPORTS", "UDPv4")   # as ost_up.sh (docs/ros.md)
+    profile = os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE") or str(PROFILE)
+    env["FASTRTPS_DEFAULT_PROFILES_FILE"] = profile
+    # Our profile keeps everything on loopback; a user's own profile gets the LOCALHOST range.
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET" if Path(profile) == PROFILE else "LOCALHOST"
     env["OST_VENV"] = str(BIN.parent)
     return env
 
