@@ -24,22 +24,14 @@ import math
 from dataclasses import dataclass
 from typing import Sequence
 
-from ost_ros.coordination import coordinate
+from ost_ros.coordination import Assignment, coordinate
 from ost_ros.model import Cell, ObjectSpec, manhattan
-
-
-@dataclass(frozen=True)
-class Step:
-    object: int
-    agents: tuple[int, ...]
-    start: int
-    finish: int
 
 
 @dataclass
 class OptimalResult:
     cost: int                  # optimal (or best found) makespan, agents home
-    plan: list[Step]
+    plan: list[Assignment]
     proven: bool               # False if the node budget ran out before the search finished
     nodes: int
     ccp_cost: int              # the CCP Coordination schedule's makespan on the same problem
@@ -77,7 +69,7 @@ def optimal_schedule(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequenc
     ccp_cost = makespan_of([int(c) for c in ccp.cost], [tuple(int(v) for v in p) for p in ccp.loc],
                            bases)
     best_cost = ccp_cost
-    best_plan = [Step(a.object, a.agents, a.start, a.finish) for a in ccp.schedule]
+    best_plan = list(ccp.schedule)
 
     carry = [manhattan(o.location, o.destination) for o in objs]
     home_k = [sorted(manhattan(o.destination, b) for b in bases)[o.required - 1] for o in objs]
@@ -92,7 +84,7 @@ def optimal_schedule(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequenc
             b = max(b, reach[o.required - 1] + carry[i] + home_k[i])
         return b
 
-    plan: list[Step] = []
+    plan: list[Assignment] = []
 
     def dfs(ca: list[int], where: list[Cell], left: list[int], prev: tuple[int, frozenset]) -> None:
         nonlocal best_cost, best_plan, nodes, proven
@@ -122,7 +114,7 @@ def optimal_schedule(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequenc
                     ca2[j], where2[j] = finish, o.destination
                 if bound(ca2, where2, rest) >= best_cost:
                     continue
-                plan.append(Step(o.id, tuple(sorted(agent_ids[j] for j in group)), start, finish))
+                plan.append(Assignment(o.id, tuple(sorted(agent_ids[j] for j in group)), start, finish))
                 dfs(ca2, where2, rest, (i, frozenset(group)))
                 plan.pop()
                 if nodes >= max_nodes:
