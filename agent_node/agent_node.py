@@ -4,7 +4,9 @@
 
 Parameters: ``agent_id``, ``scenario`` (YAML file), ``agents`` (team size override, 0 = the
 file's), ``protocol``, ``ci`` / ``interval`` / ``area_fraction`` (the coordination trigger),
-``lookahead`` (quiet steps planned for event skipping; 0 = off). The agent is built by the core's
+``lookahead`` (quiet steps planned for event skipping; 0 = off); NCP: ``ncp_delta``,
+``ncp_timeout`` (rounds) and ``mute_negotiation_from`` (fault injection: from this step the
+negotiator sends no moves; -1 = never). The agent is built by the core's
 factory (``ost_ros.simulator.make_agents``) and runs unchanged: the node only orders its calls
 (:mod:`agent_node.runtime`) and moves messages.
 """
@@ -21,6 +23,7 @@ from agent_node import transport as tp
 from agent_node.runtime import AgentRuntime, ProtocolViolation
 from ost_msgs_py.runtime import Ready, Resend, RunEnd, StepMessages, Tick
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.ncp import NegotiationSettings
 from ost_ros.scenario import ScenarioError, load_scenario, with_team
 from ost_ros.simulator import PROTOCOLS, make_agents
 
@@ -48,7 +51,7 @@ def load_agent(node: Node):
     """Read and check the parameters; the runtime around the core agent."""
     p = {name: node.get_parameter(name).value for name in
          ("agent_id", "scenario", "agents", "protocol", "ci", "interval", "area_fraction",
-          "lookahead")}
+          "lookahead", "ncp_delta", "ncp_timeout", "mute_negotiation_from")}
     if p["agent_id"] < 0:
         raise ParameterError("agent_id: must be set to a non-negative id (-p agent_id:=N)")
     if not p["scenario"]:
@@ -61,6 +64,10 @@ def load_agent(node: Node):
     if not 0.0 <= p["area_fraction"] <= 1.0:
         raise ParameterError(f"area_fraction: {p['area_fraction']} is not in [0, 1]")
     try:
+        ncp = NegotiationSettings(delta=p["ncp_delta"], timeout_rounds=p["ncp_timeout"])
+    except ValueError as exc:
+        raise ParameterError(f"ncp_delta/ncp_timeout: {exc}") from None
+    try:
         scenario = load_scenario(p["scenario"])
         if p["agents"]:
             scenario = with_team(scenario, p["agents"])
@@ -71,7 +78,10 @@ def load_agent(node: Node):
         raise ParameterError(f"agent_id: {p['agent_id']} is not in the scenario's team {list(ids)}")
     policy = CoordinationPolicy(ci=p["ci"], interval=p["interval"] or None,
                                 area_fraction=p["area_fraction"] or None)
-    agent = next(a for a in make_agents(scenario, p["protocol"], policy) if a.id == p["agent_id"])
+    agent = next(a for a in make_agents(scenario, p["protocol"], policy, ncp) if a.id == p["agent_id"])
+    if p["mute_negotiation_from"] >= 0 and p["protocol"] == "ncp":
+        # fault injection (tests, demos): this negotiator stops answering from that step on
+        agent.comm.mute_from = p["mute_negotiation_from"]
     return scenario, AgentRuntime(agent, ids, policy.name, p["lookahead"])
 
 
@@ -104,6 +114,11 @@ class AgentRunner:
         self.sub_resend = node.create_subscription(String, tp.RESEND, self.on_resend, q)
         self.resent_at: float | None = None
         self.sub_end = node.create_subscription(String, tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS)
+        # NCP's moves have their own topic (same QoS as the step messages, same barrier).
+        self.pub_neg = self.sub_neg = None
+        if self.protocol == "ncp":
+            self.pub_neg = node.create_publisher(String, tp.NEGOTIATION, q)
+            self.sub_neg = node.create_subscription(String, tp.NEGOTIATION, self.on_negotiation, q)
         self.sub_result = node.create_subscription(String, tp.RESULT, self.on_result, tp.RESULT_QOS)
         self.timer = node.create_timer(0.1, self.on_timer)
 
@@ -117,7 +132,9 @@ class AgentRunner:
                 and self.pub_batch.get_subscription_count() >= self.n
                 and self.sub_batch.get_publisher_count() >= self.n
                 and self.sub_tick.get_publisher_count() >= 1
-                and self.sub_end.get_publisher_count() >= 1)
+                and self.sub_end.get_publisher_count() >= 1
+                and (self.pub_neg is None or (self.pub_neg.get_subscription_count() >= self.n
+                                              and self.sub_neg.get_publisher_count() >= self.n)))
 
     def on_timer(self) -> None:
         if not self.ready_sent:
@@ -156,7 +173,8 @@ class AgentRunner:
     def _progress(self) -> None:
         for out in self.rt.progress():
             if isinstance(out, StepMessages):
-                self.pub_batch.publish(tp.to_string(out))
+                pub = self.pub_neg if out.channel == "negotiation" else self.pub_batch
+                pub.publish(tp.to_string(out))
             elif out.TYPE == "acted":
                 self.pub_acted.publish(tp.to_string(out))
             else:
@@ -181,6 +199,9 @@ class AgentRunner:
     def on_batch(self, msg: String) -> None:
         self._feed(msg, tp.STEP_MESSAGES, StepMessages, self.rt.accept_batch)
 
+    def on_negotiation(self, msg: String) -> None:
+        self._feed(msg, tp.NEGOTIATION, StepMessages, self.rt.accept_batch)
+
     def on_resend(self, msg: String) -> None:
         self._feed(msg, tp.RESEND, Resend, self.rt.accept_resend)
 
@@ -198,6 +219,9 @@ def declare(node: Node) -> None:
     node.declare_parameter("scenario", "")
     node.declare_parameter("agents", 0)
     node.declare_parameter("protocol", "ccp")
+    node.declare_parameter("ncp_delta", NegotiationSettings.delta)
+    node.declare_parameter("ncp_timeout", NegotiationSettings.timeout_rounds)
+    node.declare_parameter("mute_negotiation_from", -1)
     node.declare_parameter("ci", 1)
     node.declare_parameter("interval", 0)
     node.declare_parameter("area_fraction", 0.0)

@@ -15,9 +15,9 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass, field
 
-from ost_msgs_py.messages import Action, ActionKind, Observation, ObjectInfo
-from ost_msgs_py.runtime import (ProtocolViolation, Acted, AgentReport, PlanStep, Resend, RunEnd,
-                                 ScheduleEntry, StepMessages, Tick)
+from ost_msgs_py.messages import Action, ActionKind, NegotiationOffer, Observation, ObjectInfo
+from ost_msgs_py.runtime import (CHANNELS, ProtocolViolation, Acted, AgentReport, PlanStep, Resend,
+                                 RunEnd, ScheduleEntry, StepMessages, Tick)
 from ost_ros.agent import CcpAgent, GlobalState
 from ost_ros.motion import apply as move
 
@@ -35,7 +35,7 @@ class AgentRuntime:
     finished: bool = False
     _tick: Tick | None = None
     _end: RunEnd | None = None
-    _batches: dict[int, dict[int, StepMessages]] = field(default_factory=dict)
+    _batches: dict[int, dict[int, dict[str, StepMessages]]] = field(default_factory=dict)
     _own: list = field(default_factory=list)
     _plan: tuple[PlanStep, ...] = ()
     _known: dict[int, ObjectInfo] = field(default_factory=dict)
@@ -43,7 +43,7 @@ class AgentRuntime:
     # Recovery from a lost sample: what was published for the last step, to publish again.
     _last_tick: Tick | None = None
     _last_out: list = field(default_factory=list)
-    _batches_sent: dict[int, StepMessages] = field(default_factory=dict)
+    _batches_sent: dict[int, list[StepMessages]] = field(default_factory=dict)
     _resend: list = field(default_factory=list)
     _report: AgentReport | None = None
 
@@ -58,23 +58,29 @@ class AgentRuntime:
             return  # own batch: kept locally when sent
         if batch.sender not in self.team:
             raise ProtocolViolation(f"step_messages from agent {batch.sender}, not in the team")
+        if batch.channel not in CHANNELS or not 1 <= batch.parts <= len(CHANNELS):
+            raise ProtocolViolation(f"step_messages of agent {batch.sender}: channel "
+                                    f"{batch.channel!r}, {batch.parts} parts")
         if batch.t < self.last:
             return  # a re-sent batch of a step already done (see Resend)
-        per_step = self._batches.setdefault(batch.t, {})
-        if batch.sender in per_step:
-            if per_step[batch.sender] == batch:
+        parts = self._batches.setdefault(batch.t, {}).setdefault(batch.sender, {})
+        known = parts.get(batch.channel)
+        if known is not None:
+            if known == batch:
                 return  # the same batch again (see Resend)
             raise ProtocolViolation(f"second, different step_messages of agent {batch.sender} "
                                     f"for step {batch.t}")
-        per_step[batch.sender] = batch
+        if any(p.parts != batch.parts for p in parts.values()):
+            raise ProtocolViolation(f"step_messages of agent {batch.sender} for step {batch.t} "
+                                    "disagree on their number of parts")
+        parts[batch.channel] = batch
 
     def accept_resend(self, req: Resend) -> None:
         """A peer lacks this agent's batch of step ``req.t``: publish it again (if there was one)."""
         if req.sender not in self.team:
             raise ProtocolViolation(f"resend request from agent {req.sender}, not in the team")
-        batch = self._batches_sent.get(req.t)
-        if self.me in req.peers and batch is not None and batch not in self._resend:
-            self._resend.append(batch)
+        if self.me in req.peers:
+            self._resend.extend(b for b in self._batches_sent.get(req.t, ()) if b not in self._resend)
 
     def accept_tick(self, tick: Tick) -> None:
         if tick.observation.agent != self.me or tick.observation.t != tick.t:
@@ -112,12 +118,15 @@ class AgentRuntime:
         """A tick held by the barrier: its step and the peers whose step messages are missing."""
         if self._tick is None:
             return None
-        have = self._batches.get(self.last, {})
-        return self._tick.t, tuple(p for p in self._tick.peers if p != self.me and p not in have)
+        return self._tick.t, tuple(p for p in self._tick.peers if p != self.me and not self._has(p))
+
+    def _has(self, peer: int) -> bool:
+        """Every part of ``peer``'s batch of step ``self.last`` is in."""
+        parts = self._batches.get(self.last, {}).get(peer)
+        return bool(parts) and len(parts) == next(iter(parts.values())).parts
 
     def _ready(self, peers: tuple[int, ...]) -> bool:
-        have = self._batches.get(self.last, {})
-        return all(p == self.me or p in have for p in peers)
+        return all(p == self.me or self._has(p) for p in peers)
 
     def _finish_step(self, peers: tuple[int, ...], until: int) -> None:
         """Comm module for ``self.last``, then replay the skipped steps up to ``until`` - 1."""
@@ -128,7 +137,11 @@ class AgentRuntime:
                 if sender == self.me:
                     inbox.extend(self._own)
                 elif sender in peers:
-                    inbox.extend(have[sender].messages)
+                    # the sender's outbox order: negotiation moves (its comm module) first
+                    parts = have[sender]
+                    for channel in ("negotiation", "step"):
+                        if channel in parts:
+                            inbox.extend(parts[channel].messages)
             self._learn(inbox)
             self.agent.communicate(self.last, inbox)
         # Plan about twice as far as the world last skipped: long quiet stretches get long plans,
@@ -160,9 +173,9 @@ class AgentRuntime:
             self._plan = self._make_plan(obs, action) if self.lookahead and not messages else ()
             step_out: list = [Acted(action, len(messages), self._plan)]
             if messages:
-                batch = StepMessages(self.me, tick.t, tuple(messages))
-                step_out.append(batch)
-                self._batches_sent[tick.t] = batch
+                batches = split_batch(self.me, tick.t, messages)
+                step_out.extend(batches)
+                self._batches_sent[tick.t] = batches
                 # A peer is at most one lockstep step behind: keep the last few batches only.
                 while len(self._batches_sent) > 3:
                     del self._batches_sent[min(self._batches_sent)]
@@ -250,12 +263,20 @@ class AgentRuntime:
                          for a in getattr(comm, "schedule", ()))
         found = tuple((int(k), int(v)) for k, v in getattr(comm, "found_at", {}).items())
         protocol = self.agent.protocol
-        # As ost_ros.simulator.finish_result: CCP agents agree on the schedule, HCP on the groups.
+        # As ost_ros.simulator.finish_result: CCP/NCP agents agree on the schedule, HCP on the groups.
         view = getattr(comm, "groups", None) if protocol == "hcp" else getattr(comm, "schedule", None)
-        return AgentReport(self.me, protocol, self.trigger if protocol == "ccp" else "help",
+        return AgentReport(self.me, protocol, self.trigger if protocol != "hcp" else "help",
                            getattr(comm, "predicted_makespan", None),
                            int(getattr(comm, "coordinations", 0)), schedule, found,
                            tuple(getattr(self.agent, "warnings", ())), self.sent, repr(view))
+
+
+def split_batch(sender: int, t: int, messages: list) -> list[StepMessages]:
+    """A step's messages as batches per channel: NCP moves on ``negotiation``, the rest on ``step``."""
+    moves = tuple(m for m in messages if isinstance(m, NegotiationOffer))
+    rest = tuple(m for m in messages if not isinstance(m, NegotiationOffer))
+    parts = [(c, ms) for c, ms in (("step", rest), ("negotiation", moves)) if ms]
+    return [StepMessages(sender, t, ms, c, len(parts)) for c, ms in parts]
 
 
 def _plan_step(obs: Observation, action: Action, reads: bool) -> PlanStep:

@@ -30,6 +30,7 @@ READY = "/ost/ready"                    # agent → world
 RUN_END = "/ost/run_end"                # world → all agents
 REPORTS = "/ost/reports"                # agent → world
 RESULT = "/ost/result"                  # world → anyone
+NEGOTIATION = "/ost/negotiation"        # agent → all agents: NCP moves (NCP runs only)
 
 
 def agent_node_name(agent_id: int) -> str:
@@ -72,6 +73,12 @@ TOPICS: dict[str, tuple[QoSProfile, str]] = {
     RUN_END: (LATCHED_ALL_QOS, "std_msgs/msg/String"),
     REPORTS: (LATCHED_ALL_QOS, "std_msgs/msg/String"),
     RESULT: (RESULT_QOS, "std_msgs/msg/String"),
+}
+
+
+# Topics only a run of the given protocol has (same QoS and type as the step messages).
+PROTOCOL_TOPICS: dict[str, dict[str, tuple[QoSProfile, str]]] = {
+    "ncp": {NEGOTIATION: (LOCKSTEP_QOS, "std_msgs/msg/String")},
 }
 
 

@@ -2,7 +2,8 @@
 # Start a run over DDS: one world node and N agent nodes, one process (PID) each.
 #
 #   bringup_scripts/ost_up.sh --agents N (--objects M --seed S | --scenario FILE)
-#       [--protocol ccp|hcp] [--ci K | --interval T] [--width W --height H --nmax X]
+#       [--protocol ccp|hcp|ncp] [--ci K | --interval T] [--width W --height H --nmax X]
+#       [--mute-negotiation AGENT:STEP]
 #       [--domain-id D] [--run-dir DIR] [--json] [--no-skip] [--max-steps S]
 #       [--timeout SEC] [--background]
 #
@@ -23,6 +24,7 @@ die() { echo "$me: error: $*" >&2; exit 2; }
 say() { echo "$me: $*" >&2; }
 
 agents="" objects="" seed="" scenario="" protocol="ccp" ci="1" interval="" width="" height="" nmax=""
+mute=""
 domain="${ROS_DOMAIN_ID:-}" run_dir="" json=0 skip=true max_steps=0 timeout=0 background=0
 need() { [ $# -ge 2 ] && [ -n "$2" ] || die "$1 needs a value"; }
 int() { [[ "$2" =~ ^[0-9]+$ ]] || die "$1: expected a non-negative integer, got '$2'"; }
@@ -42,10 +44,12 @@ while [ $# -gt 0 ]; do
     --run-dir) need "$@"; run_dir="$2"; shift 2 ;;
     --max-steps) need "$@"; int "$1" "$2"; max_steps="$2"; shift 2 ;;
     --timeout) need "$@"; int "$1" "$2"; timeout="$2"; shift 2 ;;
+    --mute-negotiation) need "$@"; [[ "$2" =~ ^[0-9]+:[0-9]+$ ]] \
+        || die "--mute-negotiation: expected AGENT:STEP, got '$2'"; mute="$2"; shift 2 ;;
     --json) json=1; shift ;;
     --no-skip) skip=false; shift ;;
     --background) background=1; shift ;;
-    -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) die "unknown argument '$1' (see --help)" ;;
   esac
 done
@@ -60,7 +64,8 @@ fi
 [ -z "$agents" ] || [ "$agents" -ge 1 ] || die "--agents: must be at least 1"
 [ "$ci" -ge 1 ] || die "--ci: must be at least 1"
 [ -z "$domain" ] || [ "$domain" -le 232 ] || die "--domain-id: $domain is above 232"
-case "$protocol" in ccp|hcp) ;; *) die "--protocol: '$protocol' is not ccp or hcp" ;; esac
+case "$protocol" in ccp|hcp|ncp) ;; *) die "--protocol: '$protocol' is not ccp, hcp or ncp" ;; esac
+[ -z "$mute" ] || [ "$protocol" = ncp ] || die "--mute-negotiation: only with --protocol ncp"
 
 # ------------------------------------------------------------------ run directory, background
 if [ -z "$run_dir" ]; then
@@ -82,6 +87,7 @@ if [ "$background" = 1 ]; then
   [ -n "$width" ] && fwd+=(--width "$width")
   [ -n "$height" ] && fwd+=(--height "$height")
   [ -n "$nmax" ] && fwd+=(--nmax "$nmax")
+  [ -n "$mute" ] && fwd+=(--mute-negotiation "$mute")
   [ -n "$domain" ] && fwd+=(--domain-id "$domain")
   [ "$skip" = false ] && fwd+=(--no-skip)
   [ "$json" = 1 ] && fwd+=(--json)
@@ -195,7 +201,9 @@ elapsed_ms() { echo $(( ($(date +%s%N) - t0) / 1000000 )); }
 "$bin/world_node" --ros-args --params-file "$run_dir/world_params.yaml" > "$run_dir/world.log" 2>&1 &
 pids+=($!); names[$!]="world"; echo $! > "$run_dir/world.pid"
 for i in $ids; do
-  "$bin/agent_node" --ros-args --params-file "$run_dir/params.yaml" -p "agent_id:=$i" \
+  extra=()   # fault injection: this agent's negotiator goes silent from a step on
+  [ -n "$mute" ] && [ "${mute%%:*}" = "$i" ] && extra=(-p "mute_negotiation_from:=${mute##*:}")
+  "$bin/agent_node" --ros-args --params-file "$run_dir/params.yaml" -p "agent_id:=$i" "${extra[@]}" \
     > "$run_dir/agent_$i.log" 2>&1 &
   pids+=($!); names[$!]="agent_$i"; echo $! > "$run_dir/agent_$i.pid"
 done

@@ -7,7 +7,7 @@ wire) and back with strict validation, so ``ros2 topic echo`` shows readable con
 Two families:
 - agent ↔ agent (the comm module): :class:`ObjectFound`, :class:`SearchDone`, :class:`Selection`,
   and the help-based protocol's :class:`HelpRequest`, :class:`HelpOffer`, :class:`HelpAccept`,
-  :class:`HelpRelease`;
+  :class:`HelpRelease`, and the negotiation protocol's :class:`NegotiationOffer`;
 - agent ↔ world (sensing and acting): :class:`Observation`, :class:`Action`.
 """
 from __future__ import annotations
@@ -124,6 +124,31 @@ class HelpRelease:
     version: int = SCHEMA_VERSION
 
 
+NEGOTIATION_KINDS = ("offer", "exit")
+BROADCAST = -1   # receiver of a message meant for every team mate
+
+
+@dataclass(frozen=True)
+class NegotiationOffer:
+    """NCP: one negotiator's move in round ``round`` of negotiation ``negotiation``.
+
+    ``offer`` is the offer vector: the ids of the objects in which the sender claims one carrying
+    slot. ``kind`` is ``offer`` (a claim, possibly unchanged) or ``exit`` (the sender leaves with
+    ``offer``, which nobody contests any more). ``receiver`` is -1: every move goes to everyone.
+    Carried on ``/ost/negotiation`` by the ROS runtime.
+    """
+
+    TYPE: ClassVar[str] = "negotiation_offer"
+    sender: int
+    t: int
+    negotiation: int
+    round: int
+    kind: str
+    offer: tuple[int, ...] = ()
+    receiver: int = BROADCAST
+    version: int = SCHEMA_VERSION
+
+
 # ----------------------------------------------------------------------------- agent ↔ world
 
 
@@ -163,9 +188,10 @@ class Action:
 
 
 AGENT_MESSAGES: tuple[type, ...] = (ObjectFound, SearchDone, Selection, HelpRequest, HelpOffer,
-                                    HelpAccept, HelpRelease)
+                                    HelpAccept, HelpRelease, NegotiationOffer)
 WORLD_MESSAGES: tuple[type, ...] = (Observation, Action)
 ALL_MESSAGES: dict[str, type] = {cls.TYPE: cls for cls in AGENT_MESSAGES + WORLD_MESSAGES}
 
-AgentMessage = ObjectFound | SearchDone | Selection | HelpRequest | HelpOffer | HelpAccept | HelpRelease
+AgentMessage = (ObjectFound | SearchDone | Selection | HelpRequest | HelpOffer | HelpAccept | HelpRelease
+                | NegotiationOffer)
 

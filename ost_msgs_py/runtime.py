@@ -6,7 +6,7 @@
 - :class:`Acted` (agent → world): the action of step t, how many protocol messages the agent
   broadcast in step t, and (event skipping) its plan for the following quiet steps;
 - :class:`StepMessages` (agent → all agents): the sender's protocol messages of step t, sent only
-  when there are any. An agent runs its comm module for step t once it holds the batch of every
+  when there are any (NCP's negotiation moves travel as a separate part on /ost/negotiation). An agent runs its comm module for step t once it holds the batch of every
   sender the world listed — a counting barrier whose count the world supplies, so quiet steps
   cost no agent-to-agent traffic;
 - :class:`Resend`: recovery — an agent whose tick waited too long for some peers' batches asks
@@ -98,14 +98,24 @@ class Acted:
     version: int = RUNTIME_VERSION
 
 
+CHANNELS = ("step", "negotiation")   # /ost/step_messages, /ost/negotiation
+
+
 @dataclass(frozen=True)
 class StepMessages:
-    """The sender's protocol messages of step ``t``, in the order its outbox produced them."""
+    """The sender's protocol messages of step ``t``, in the order its outbox produced them.
+
+    ``channel``: ``step`` (on /ost/step_messages) or ``negotiation`` (NCP moves, on
+    /ost/negotiation). A step whose messages are of both kinds is sent as two parts
+    (``parts`` = 2); a receiver waits for every part.
+    """
 
     TYPE: ClassVar[str] = "step_messages"
     sender: int
     t: int
     messages: tuple[AnyMessage, ...] = ()
+    channel: str = "step"
+    parts: int = 1
     version: int = RUNTIME_VERSION
 
 

@@ -27,6 +27,7 @@ _SELECTION_MEMORY = 8
 class CommState(str, Enum):
     LISTENING = "LISTENING"
     COORDINATING = "COORDINATING"
+    NEGOTIATING = "NEGOTIATING"   # NCP only: a negotiation is under way (ost_ros.ncp)
     CLOSED = "CLOSED"
 
 

@@ -103,6 +103,52 @@ def coordinate(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Sequ
     return CoordinationResult(schedule, cost, loc, selections)
 
 
+def order_groups(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Sequence[int]],
+                 objects: Sequence[ObjectSpec], groups: dict[int, tuple[int, ...]]) -> CoordinationResult:
+    """Schedule objects whose groups are already agreed (NCP): Algorithm Coordination's steps 2
+    and 3 with the group of each object fixed.
+
+    Each round, M_i = max over o_i's group of C_ij (when its last member could arrive); the
+    object with the smallest M_i (ties: lower id) is scheduled next and its group's CA and loc
+    updated exactly as in :func:`coordinate`. One global order that every group member follows,
+    so execution cannot deadlock and starts exactly when planned.
+    """
+    ids = np.asarray(agent_ids, dtype=np.int64)
+    cost = np.array(cost, dtype=np.int64).reshape(-1)
+    loc = np.array(loc, dtype=np.int64).reshape(-1, 2)
+    index = {int(a): k for k, a in enumerate(ids)}
+    objs = sorted(objects, key=lambda o: o.id)
+    m = len(objs)
+    if m == 0:
+        return CoordinationResult([], cost, loc, np.zeros((0, ids.size), dtype=np.int64))
+    member = np.zeros((m, ids.size), dtype=bool)
+    for r, o in enumerate(objs):
+        g = groups.get(o.id, ())
+        if len(g) != o.required or len(set(g)) != len(g) or any(a not in index for a in g):
+            raise ValueError(f"object {o.id} needs {o.required} distinct team members, got {list(g)}")
+        member[r, [index[a] for a in g]] = True
+    obj_ids = np.array([o.id for o in objs], dtype=np.int64)
+    where = np.array([o.location for o in objs], dtype=np.int64)
+    dest = np.array([o.destination for o in objs], dtype=np.int64)
+    carry = np.abs(where - dest).sum(axis=1)
+    reach = _reach(cost, loc, where)
+    alive = np.ones(m, dtype=bool)
+    schedule: list[Assignment] = []
+    for _ in range(m):
+        m_i = np.where(member, reach, -1).max(axis=1)
+        m_i[~alive] = _FAR
+        p = int(np.argmin(m_i))           # first minimum: the lower object id
+        m_p = int(m_i[p])
+        group = np.flatnonzero(member[p])
+        finish = m_p + int(carry[p])
+        cost[group] = finish
+        loc[group] = dest[p]
+        schedule.append(Assignment(int(obj_ids[p]), tuple(int(a) for a in ids[group]), m_p, finish))
+        alive[p] = False
+        reach[:, group] = _reach(cost[group], loc[group], where)
+    return CoordinationResult(schedule, cost, loc, np.zeros((0, ids.size), dtype=np.int64))
+
+
 # ----------------------------------------------------------------------------- triggers
 
 

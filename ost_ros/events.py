@@ -24,6 +24,7 @@ from ost_ros.comm import CcpComm
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.hcp import HcpState
 from ost_ros.model import Cell, Scenario, manhattan
+from ost_ros.ncp import NcpComm, NegotiationSettings
 from ost_ros.result import AgentRecord, ObjectRecord, RunResult
 from ost_ros.search import route, sweep_plan
 from ost_ros.team import TeamInfo
@@ -100,7 +101,10 @@ def _ccp_sensing(scenario: Scenario) -> tuple[TeamInfo, list[np.ndarray], np.nda
     return team, paths, found, (masked == found[None, :]).sum(axis=0)
 
 
-def simulate_ccp(scenario: Scenario, policy: CoordinationPolicy) -> RunResult:
+def simulate_ccp(scenario: Scenario, policy: CoordinationPolicy,
+                 ncp: NegotiationSettings | None = None) -> RunResult:
+    """CCP (one comm module stands for all: they agree by construction) or, with ``ncp``, NCP
+    (every agent's comm module, fed each step while a negotiation runs: moves are messages)."""
     team, paths, found, finders = _ccp_sensing(scenario)
     ids = team.agent_ids
     lengths = [int(x) for x in team.sweep_lengths()]
@@ -114,12 +118,32 @@ def simulate_ccp(scenario: Scenario, policy: CoordinationPolicy) -> RunResult:
     close = max(lengths)
     for t in _trigger_steps(team, policy, close):
         events.setdefault(t, [])
-    comm = CcpComm(ids[0], team, policy)
-    for t in sorted(events):
-        if t > close:
+    if ncp is None:
+        comms = [CcpComm(ids[0], team, policy)]
+    else:   # one NCP module holding the public state and making every agent's move
+        comms = [NcpComm(ids[0], team, policy, settings=ncp, voices=ids)]
+    comm = comms[0]
+    moves = 0
+    pending = sorted(events)
+    k, t, inflight = 0, -1, []
+    while k < len(pending) or inflight or (ncp is not None and comm.busy):
+        # A step with news: the next event, or the very next step while moves are in flight.
+        t = t + 1 if inflight or (ncp is not None and comm.busy) else pending[k]
+        while k < len(pending) and pending[k] <= t:
+            k += 1
+        inbox = inflight + events.get(t, [])
+        for c in comms:
+            c.receive(t, inbox)
+        inflight = [m for c in comms for m in c.drain()] if ncp is not None else []
+        for c in comms:
+            c.drain()
+        moves += len(inflight)
+        if comm.closed and not inflight:
             break
-        comm.receive(t, events[t])
-        comm.drain()
+    if ncp is not None:
+        closed_at = t
+    else:
+        closed_at = close
 
     # Each agent's timeline from its assignments (planned = executed).
     records: list[AgentRecord] = []
@@ -138,7 +162,7 @@ def simulate_ccp(scenario: Scenario, policy: CoordinationPolicy) -> RunResult:
             loc[j] = o.destination
     for j, agent in enumerate(ids):
         home = manhattan(loc[j], team.bases[j])
-        finished = max(free[j], close + 1) + home
+        finished = max(free[j], closed_at + 1) + home
         travel[j] += home
         idle = finished - lengths[j] - travel[j] - carry[j]
         records.append(AgentRecord(agent, finished, idle, carry[j], lengths[j], travel[j]))
@@ -146,13 +170,18 @@ def simulate_ccp(scenario: Scenario, policy: CoordinationPolicy) -> RunResult:
     objects = [ObjectRecord(o.id, by_obj[o.id].agents, by_obj[o.id].start, by_obj[o.id].finish)
                for o in objs]
     makespan = max(r.finished for r in records)
-    messages = int(finders.sum()) + len(ids) + len(ids) * comm.coordinations
+    if ncp is None:
+        messages = int(finders.sum()) + len(ids) + len(ids) * comm.coordinations
+    else:
+        messages = int(finders.sum()) + len(ids) + moves
+    agreement = all(c.schedule == comm.schedule for c in comms)
     return RunResult(
         makespan=makespan, last_delivery=max((a.finish for a in comm.schedule), default=0),
         completed=True, steps=makespan + 1, agents=records, objects=objects, rejections=[],
-        protocol="ccp", trigger=policy.name, predicted_makespan=comm.predicted_makespan,
-        coordinations=comm.coordinations, messages=messages, agreement=True,
-        warnings=[f"agent {ids[0]}: {w}" for w in comm.warnings],
+        protocol="ccp" if ncp is None else "ncp", trigger=policy.name,
+        predicted_makespan=comm.predicted_makespan,
+        coordinations=comm.coordinations, messages=messages, agreement=agreement,
+        warnings=[f"agent {c.me}: {w}" for c in comms for w in c.warnings],
         found={o.id: int(found[i]) for i, o in enumerate(objs)}, schedule=list(comm.schedule))
 
 
@@ -321,14 +350,16 @@ def simulate_hcp(scenario: Scenario, max_steps: int | None = None) -> RunResult:
 
 def simulate_events(scenario: Scenario, protocol: str = "ccp",
                     policy: CoordinationPolicy | None = None,
-                    max_steps: int | None = None) -> RunResult:
+                    max_steps: int | None = None,
+                    ncp: NegotiationSettings | None = None) -> RunResult:
     """Event-driven run; the same result as the step simulator."""
-    if protocol not in ("ccp", "hcp"):
-        raise ValueError(f"unknown protocol {protocol!r} (choose from ccp, hcp)")
+    if protocol not in ("ccp", "hcp", "ncp"):
+        raise ValueError(f"unknown protocol {protocol!r} (choose from ccp, hcp, ncp)")
     if protocol == "hcp":
         return simulate_hcp(scenario, max_steps)
-    result = simulate_ccp(scenario, policy or CoordinationPolicy())
+    settings = (ncp or NegotiationSettings()) if protocol == "ncp" else None
+    result = simulate_ccp(scenario, policy or CoordinationPolicy(), settings)
     if max_steps is not None and result.steps > max_steps:
         from ost_ros.simulator import simulate   # the reference reports where it stopped
-        return simulate(scenario, protocol, policy, max_steps=max_steps)
+        return simulate(scenario, protocol, policy, max_steps=max_steps, ncp=ncp)
     return result

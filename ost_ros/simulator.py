@@ -12,11 +12,12 @@ from ost_ros.agent import CcpAgent
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.hcp import HcpAgent
 from ost_ros.model import Scenario
+from ost_ros.ncp import NcpAgent, NegotiationSettings
 from ost_ros.result import RunResult
 from ost_ros.team import TeamInfo
 from ost_ros.world import World
 
-PROTOCOLS = ("ccp", "hcp")
+PROTOCOLS = ("ccp", "hcp", "ncp")
 ENGINES = ("step", "event")
 
 
@@ -28,12 +29,15 @@ def step_limit(scenario: Scenario) -> int:
     return int(max(s.length for s in team.sweeps)) + 2 + (2 * len(scenario.objects) + 1) * span
 
 
-def make_agents(scenario: Scenario, protocol: str, policy: CoordinationPolicy) -> list:
+def make_agents(scenario: Scenario, protocol: str, policy: CoordinationPolicy,
+                ncp: NegotiationSettings | None = None) -> list:
     if protocol not in PROTOCOLS:
         raise ValueError(f"unknown protocol {protocol!r} (choose from {', '.join(PROTOCOLS)})")
     team = TeamInfo.from_scenario(scenario)
     if protocol == "hcp":
         return [HcpAgent(a.id, team) for a in scenario.agents]
+    if protocol == "ncp":
+        return [NcpAgent(a.id, team, policy, ncp) for a in scenario.agents]
     return [CcpAgent(a.id, team, policy) for a in scenario.agents]
 
 
@@ -49,20 +53,20 @@ def choose_engine(scenario: Scenario, engine: str = "auto") -> str:
 def simulate(scenario: Scenario, protocol: str = "ccp", policy: CoordinationPolicy | None = None,
              max_steps: int | None = None,
              on_step: Callable[[World, list], None] | None = None,
-             engine: str = "step") -> RunResult:
+             engine: str = "step", ncp: NegotiationSettings | None = None) -> RunResult:
     """Run a scenario to completion (or to the step limit) and return the result.
 
     ``on_step(world, actions)`` is called after each step (progress display, tracing, tests);
     the event engine (``engine="event"``, same result, :mod:`ost_ros.events`) has no steps to
-    report and ignores it.
+    report and ignores it. ``ncp``: the negotiation settings of protocol ``ncp``.
     """
     policy = policy or CoordinationPolicy()
     if choose_engine(scenario, engine) == "event":
         if protocol not in PROTOCOLS:
             raise ValueError(f"unknown protocol {protocol!r} (choose from {', '.join(PROTOCOLS)})")
         from ost_ros.events import simulate_events   # events builds on this module
-        return simulate_events(scenario, protocol, policy, max_steps)
-    agents = make_agents(scenario, protocol, policy)
+        return simulate_events(scenario, protocol, policy, max_steps, ncp)
+    agents = make_agents(scenario, protocol, policy, ncp)
     world = World(scenario)
     limit = max_steps if max_steps is not None else step_limit(scenario)
     messages = 0
@@ -82,7 +86,7 @@ def finish_result(world: World, agents: list, protocol: str, policy: Coordinatio
                   messages: int) -> RunResult:
     """The world's record plus what the agents know (prediction, agreement, warnings)."""
     first = agents[0].comm
-    # CCP agents agree on the global schedule; HCP agents on every staffing decision.
+    # CCP/NCP agents agree on the global schedule; HCP agents on every staffing decision.
     view = (lambda c: c.groups) if protocol == "hcp" else (lambda c: c.schedule)
     agreement = all(view(ag.comm) == view(first) for ag in agents)
     warnings = [f"agent {ag.id}: {w}" for ag in agents for w in ag.warnings]
@@ -90,7 +94,7 @@ def finish_result(world: World, agents: list, protocol: str, policy: Coordinatio
     for ag in agents:   # CCP: everyone knows every find; HCP: each owner knows its own
         for oid, t in ag.comm.found_at.items():
             found[oid] = min(t, found.get(oid, t))
-    result = world.result(protocol=protocol, trigger=policy.name if protocol == "ccp" else "help",
+    result = world.result(protocol=protocol, trigger=policy.name if protocol != "hcp" else "help",
                           predicted_makespan=first.predicted_makespan,
                           coordinations=first.coordinations, messages=messages,
                           agreement=agreement, warnings=warnings, found=dict(sorted(found.items())),

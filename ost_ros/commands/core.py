@@ -14,6 +14,7 @@ from ost_ros.coordination import CoordinationPolicy, coordinate
 from ost_ros.model import DEFAULT_HEIGHT, DEFAULT_NMAX, DEFAULT_WIDTH, Grid, ObjectSpec
 from ost_ros.scenario import ScenarioError, dump_scenario, generate_scenario
 from ost_ros.bounds import lower_bound
+from ost_ros.ncp import NegotiationSettings
 from ost_ros.simulator import ENGINES, PROTOCOLS, choose_engine, simulate
 from ost_ros.validate import FieldError
 
@@ -46,6 +47,11 @@ def register(sub) -> None:
     trig.add_argument("--interval", type=positive, help="coordinate every T time steps instead")
     trig.add_argument("--area-fraction", type=fraction,
                       help="coordinate each time this fraction of the area is searched instead")
+    p.add_argument("--ncp-delta", type=fraction, default=NegotiationSettings.delta,
+                   help="NCP: claim discount per negotiation round, in (0, 1) (default %(default)s)")
+    p.add_argument("--ncp-timeout", type=positive, default=NegotiationSettings.timeout_rounds,
+                   help="NCP: rounds without an answer before a negotiator is left out "
+                        "(default %(default)s)")
     p.add_argument("--agents", type=positive,
                    help="replace the scenario's team by N agents (default partition and bases)")
     p.add_argument("--max-steps", type=positive, help="stop after this many steps")
@@ -91,6 +97,9 @@ def cmd_generate(args: argparse.Namespace) -> int:
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
+    if args.ncp_delta >= 1.0:
+        raise UsageError(f"--ncp-delta must be below 1, got {args.ncp_delta:g}")
+    ncp = NegotiationSettings(delta=args.ncp_delta, timeout_rounds=args.ncp_timeout)
     scenario = load_scenario_arg(args.scenario, args.agents)
     policy = CoordinationPolicy(ci=args.ci, interval=args.interval, area_fraction=args.area_fraction)
     show = sys.stderr.isatty() if args.progress is None else args.progress
@@ -126,7 +135,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
         hooks = [h for h in hooks if h is not progress]
     try:
         result = simulate(scenario, args.protocol, policy, max_steps=args.max_steps,
-                          on_step=on_step if hooks else None, engine=engine)
+                          on_step=on_step if hooks else None, engine=engine, ncp=ncp)
     finally:
         if bar is not None:
             bar.close()

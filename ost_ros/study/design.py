@@ -19,7 +19,7 @@ class Variant:
 
     @property
     def label(self) -> str:
-        return "HCP" if self.protocol == "hcp" else f"CCP CI={self.ci}"
+        return "HCP" if self.protocol == "hcp" else f"{self.protocol.upper()} CI={self.ci}"
 
 
 @dataclass(frozen=True)
@@ -64,6 +64,8 @@ class Design:
                 variants = [Variant("ccp", 1), Variant("ccp", "M")]
                 if n in self.compare_agents:
                     variants.append(Variant("hcp"))
+                    # NCP (negotiated allocation, not in the paper) as a third curve
+                    variants.extend((Variant("ncp", 1), Variant("ncp", "M")))
                     variants.extend(Variant("ccp", c) for c in self.cis if c != 1)
                 for s in range(self.sets):
                     out.append(Task(n, m, s, self.object_seed(m, s), tuple(variants)))

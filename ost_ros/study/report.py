@@ -69,8 +69,9 @@ def plots(out: Path, design: Design, c: dict) -> list[str]:
     files = []
     for fig, n in (("fig7", 10), ("fig8", 50)):
         if n in design.compare_agents:
-            _plot(out / f"{fig}.png", f"HCP vs CCP, N={n}", ms,
-                  {v: [c.get((n, m, v)) for m in ms] for v in ("HCP", "CCP CI=1", "CCP CI=M")})
+            _plot(out / f"{fig}.png", f"HCP vs CCP (and NCP), N={n}", ms,
+                  {v: [c.get((n, m, v)) for m in ms]
+                   for v in ("HCP", "CCP CI=1", "CCP CI=M", "NCP CI=1", "NCP CI=M")})
             files.append(f"{fig}.png")
     for fig, n in (("fig9", 10), ("fig10", 50)):
         if n in design.compare_agents:
@@ -261,7 +262,7 @@ def _markdown(design, c, rows, timing, quick, t1, t3, figs, claims) -> str:
     L.append("")
     L.append("## Mean execution time (steps), Figs 7–11")
     L.append("")
-    variants = sorted({k[2] for k in c}, key=lambda v: (v != "HCP", v != "CCP CI=M",
+    variants = sorted({k[2] for k in c}, key=lambda v: (v != "HCP", v.startswith("NCP"), v[-1] != "M",
                                                          int(v.split("=")[1]) if v[-1].isdigit() else 0))
     for n in design.agents:
         present = [v for v in variants if any((n, m, v) in c for m in design.objects)]
@@ -273,6 +274,7 @@ def _markdown(design, c, rows, timing, quick, t1, t3, figs, claims) -> str:
             L.append(f"| {m} | " + " | ".join(_fmt(round(c[(n, m, v)])) if (n, m, v) in c else "–"
                                              for v in present) + " |")
         L.append("")
+    L.extend(_ncp_section(design, c))
     L.append("## Table 1: order of the Optimal-OST search space, N = 10")
     L.append("")
     L.append("| M | ours: log10(M!·E[C(10,i)]^M) | paper |")
@@ -284,6 +286,29 @@ def _markdown(design, c, rows, timing, quick, t1, t3, figs, claims) -> str:
     L.append("")
     L.extend(DIFFERENCES)
     return "\n".join(L) + "\n"
+
+
+def _ncp_section(design: Design, c: dict) -> list[str]:
+    """NCP next to CCP at the same CI: mean time ratio per (N, CI), and where NCP wins."""
+    L = ["## NCP (negotiated allocation) next to CCP", "",
+         "Not in the paper: at each coordination point the found objects are allocated by the "
+         "target-points negotiation (docs/interpretation.md, NCP) and the agreed groups are "
+         "executed like a CCP schedule. Ratio = mean NCP time / mean CCP time at the same CI.", "",
+         "| N | CI | M: ratio NCP/CCP | NCP faster in |", "|---|---|---|---|"]
+    for n in design.compare_agents:
+        for ci in ("1", "M"):
+            cells, wins, total = [], 0, 0
+            for m in design.objects:
+                a, b = c.get((n, m, f"NCP CI={ci}")), c.get((n, m, f"CCP CI={ci}"))
+                if a is None or b is None or b == 0:
+                    continue
+                total += 1
+                wins += a < b
+                cells.append(f"{m}: {a / b:.2f}")
+            if cells:
+                L.append(f"| {n} | {ci} | {', '.join(cells)} | {wins} of {total} M |")
+    L.append("")
+    return L
 
 
 DIFFERENCES = [

@@ -36,7 +36,7 @@ def run_task(task: Task) -> tuple[list[Row], float]:
     scenario = scenario_of(task)
     bound = lower_bound(scenario).value
     rows = []
-    done: dict[int, object] = {}
+    done: dict[tuple[str, int], object] = {}
     for v in task.variants:
         if v.protocol == "hcp":
             r = simulate_events(scenario, "hcp")
@@ -44,9 +44,9 @@ def run_task(task: Task) -> tuple[list[Row], float]:
             ci = task.objects if v.ci == "M" else int(v.ci)
             # Every CI > M is the same run (coordination only once everyone has searched).
             ci = min(max(ci, 1), task.objects + 1)
-            if ci not in done:
-                done[ci] = simulate_events(scenario, "ccp", CoordinationPolicy(ci=ci))
-            r = done[ci]
+            if (v.protocol, ci) not in done:
+                done[(v.protocol, ci)] = simulate_events(scenario, v.protocol, CoordinationPolicy(ci=ci))
+            r = done[(v.protocol, ci)]
         if not r.completed or r.rejections or r.warnings:
             raise RuntimeError(f"{v.label} on N={task.agents} M={task.objects} set {task.set}: "
                                f"{r.error or (r.rejections + r.warnings)[:1]}")

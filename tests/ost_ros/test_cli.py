@@ -50,6 +50,17 @@ def test_sim_json(scenario):
     assert r.stdout == ost("sim", scenario, "--ci", 2, "--json").stdout   # deterministic
 
 
+def test_sim_ncp(scenario):
+    r = ost("sim", scenario, "--protocol", "ncp", "--ci", 6, "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["protocol"] == "ncp" and out["completed"] and out["agreement"]
+    assert out["makespan"] == out["predicted_makespan"]
+    slower = json.loads(ost("sim", scenario, "--protocol", "ncp", "--ci", 6, "--ncp-delta", 0.95,
+                            "--json").stdout)
+    assert slower["messages"] > out["messages"]      # a slower claim schedule takes more rounds
+
+
 def test_sim_text_and_team_override(scenario):
     r = ost("sim", scenario, "--agents", 8)
     assert r.returncode == 0, r.stderr
@@ -107,6 +118,9 @@ def test_bad_scenario_one_line_exit_2(tmp_path, name):
     (["sim", "x.yaml", "--ci", 0], "--ci"),
     (["sim", "x.yaml", "--ci", 2, "--interval", 5], "not allowed with"),
     (["sim", "x.yaml", "--protocol", "xyz"], "--protocol"),
+    (["sim", "x.yaml", "--protocol", "ncp", "--ncp-delta", 1], "--ncp-delta must be below 1"),
+    (["sim", "x.yaml", "--protocol", "ncp", "--ncp-delta", 0], "--ncp-delta"),
+    (["sim", "x.yaml", "--protocol", "ncp", "--ncp-timeout", 0], "--ncp-timeout"),
     (["schedule", "missing.json"], "missing.json: no such file"),
     (["frobnicate"], "invalid choice"),
 ])

@@ -150,3 +150,24 @@ def test_lost_samples_are_recovered_and_change_nothing(protocol):
     result, lost = run_lossy(scenario, protocol, policy, lambda k: k % 5 == 3)
     assert lost > 50
     assert result.to_dict() == simulate(scenario, protocol, policy).to_dict()
+
+
+def test_ncp_moves_travel_as_their_own_part():
+    from agent_node.runtime import split_batch
+    from ost_msgs_py.messages import NegotiationOffer, SearchDone
+
+    move = NegotiationOffer(1, 5, 1, 0, "offer", (3, 4))
+    parts = split_batch(1, 5, [move, SearchDone(1, 5)])
+    assert [(p.channel, p.parts, len(p.messages)) for p in parts] == [("step", 2, 1), ("negotiation", 2, 1)]
+    assert split_batch(1, 5, [move])[0].parts == 1
+    # a receiver waits for every part before running its comm module
+    scenario = generate_scenario(2, 2, 1, Grid(12, 6), 2)
+    ids = (0, 1)
+    rt = AgentRuntime(make_agents(scenario, "ncp", CoordinationPolicy())[0], ids)
+    rt.last = 5
+    rt.accept_batch(wire(parts[1]))
+    assert not rt._ready((1,))
+    rt.accept_batch(wire(parts[0]))
+    assert rt._ready((1,))
+    with pytest.raises(ProtocolViolation, match="channel"):
+        rt.accept_batch(dataclasses.replace(parts[0], channel="bogus"))
