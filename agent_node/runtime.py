@@ -19,6 +19,7 @@ from ost_msgs_py.messages import Action, ActionKind, NegotiationOffer, Observati
 from ost_msgs_py.runtime import (CHANNELS, ProtocolViolation, Acted, AgentReport, PlanStep, Resend,
                                  RunEnd, ScheduleEntry, StepMessages, Tick)
 from ost_ros.agent import CcpAgent, GlobalState
+from ost_ros.model import can_move, group_period
 from ost_ros.motion import apply as move
 
 _SENSE = tuple((dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1))   # the world's sensing order
@@ -234,11 +235,18 @@ class AgentRuntime:
         if action.kind is ActionKind.MOVE:
             return move(pos, action.direction)
         if action.kind is ActionKind.CARRY:
-            # Planned = executed: the group is complete from the assignment's start on.
+            # Planned = executed: the group is complete from the assignment's start on, and
+            # moves in the steps its slowest member can move in.
             a = self._scheduled().get(action.object)
-            if a is not None and t >= a.start:
+            if a is not None and t >= a.start and can_move(t, self._group_period(a.agents)):
                 return move(pos, action.direction)
         return pos
+
+    def _group_period(self, agents) -> int:
+        team = getattr(self.agent, "team", None)
+        if team is None or not team.periods:
+            return 1
+        return group_period([team.periods[team.index(j)] for j in agents])
 
     def _predict_sensed(self, pos, s: int) -> tuple[int, ...]:
         """Known objects expected at their original cell in the 3×3 block at step ``s``."""

@@ -20,7 +20,7 @@ from enum import Enum
 from ost_msgs_py.messages import Action, ActionKind, Observation, ObjectFound, SearchDone
 from ost_ros.comm import CcpComm
 from ost_ros.coordination import Assignment, CoordinationPolicy
-from ost_ros.model import Cell
+from ost_ros.model import Cell, can_move
 from ost_ros.motion import step_toward
 from ost_ros.search import SearchModule, SearchState
 from ost_ros.team import TeamInfo
@@ -46,6 +46,7 @@ class CcpAgent:
         self.team = team
         k = team.index(agent_id)
         self.base: Cell = team.bases[k]
+        self.period: int = team.periods[k] if team.periods else 1   # moves every `period` steps
         self.position: Cell = self.base
         self.t = 0
         self.state = GlobalState.SEARCHING
@@ -82,7 +83,8 @@ class CcpAgent:
         for _ in range(len(GlobalState) + 1):
             s = self.state
             if s is GlobalState.SEARCHING:
-                return ActionKind.MOVE, step_toward(self.position, self.search.next_cell(self.position)), -1
+                nxt = self.search.next_cell(self.position)
+                return self._walk(nxt)
             if s is GlobalState.DECISION:
                 self._read_schedule()
                 if self.tasks:
@@ -97,7 +99,7 @@ class CcpAgent:
                 if self.position == target:
                     self.state = GlobalState.WAITING
                 else:
-                    return ActionKind.MOVE, step_toward(self.position, target), -1
+                    return self._walk(target)
             elif s is GlobalState.WAITING or s is GlobalState.MOVING:
                 # Hold the object and pull toward its destination every step: the world moves it
                 # once the whole group pulls, so no agent needs to know who else has arrived.
@@ -113,10 +115,16 @@ class CcpAgent:
                 if self.position == self.base:
                     self.state = GlobalState.FINISH
                 else:
-                    return ActionKind.MOVE, step_toward(self.position, self.base), -1
+                    return self._walk(self.base)
             else:  # FINISH
                 return ActionKind.WAIT, (0, 0), -1
         raise RuntimeError(f"agent {self.id}: motion FSA did not settle in state {self.state}")
+
+    def _walk(self, target: Cell) -> tuple[ActionKind, Cell, int]:
+        """One cell toward ``target`` — in a step this agent can move in; else it waits."""
+        if not can_move(self.t, self.period):
+            return ActionKind.WAIT, (0, 0), -1
+        return ActionKind.MOVE, step_toward(self.position, target), -1
 
     def _read_schedule(self) -> None:
         schedule = self.comm.schedule

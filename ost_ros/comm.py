@@ -17,7 +17,7 @@ import numpy as np
 
 from ost_msgs_py.messages import ObjectFound, SearchDone, Selection
 from ost_ros.coordination import Assignment, CoordinationPolicy, coordinate
-from ost_ros.model import ObjectSpec
+from ost_ros.model import ObjectSpec, arrival_np
 from ost_ros.team import TeamInfo
 
 # Selections of this many most recent coordinations are kept for cross-checking peers.
@@ -116,7 +116,7 @@ class CcpComm:
         self.state = CommState.COORDINATING
         cost, loc = self.costs(t)
         batch = [self.objects[i] for i in sorted(self.unscheduled)]
-        result = coordinate(self.team.agent_ids, cost, loc, batch)
+        result = coordinate(self.team.agent_ids, cost, loc, batch, self.team.speed_periods)
         for a in result.schedule:
             members = [self.team.index(j) for j in a.agents]
             self.free_at[members] = a.finish
@@ -133,7 +133,7 @@ class CcpComm:
     def _predict_makespan(self, t: int) -> int:
         cost, loc = self.costs(t)
         bases = np.array(self.team.bases, dtype=np.int64).reshape(-1, 2)
-        return int(np.max(cost + np.abs(loc - bases).sum(axis=1)))
+        return int(np.max(arrival_np(cost, np.abs(loc - bases).sum(axis=1), self.team.period_array())))
 
     @property
     def closed(self) -> bool:

@@ -18,7 +18,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ost_ros.model import ObjectSpec
+from ost_ros.model import ObjectSpec, arrival, arrival_np, group_period
 
 # Larger than any reachable cost, small enough that sums never overflow int64.
 _FAR = np.int64(1) << 60
@@ -26,7 +26,8 @@ _FAR = np.int64(1) << 60
 
 @dataclass(frozen=True)
 class Assignment:
-    """One scheduled object: its group, when carrying starts (M_p) and when it is delivered."""
+    """One scheduled object: its group, when carrying starts (M_p; with slower agents the first
+    step ≥ M_p the whole group can move in) and when it is delivered."""
 
     object: int
     agents: tuple[int, ...]
@@ -42,18 +43,31 @@ class CoordinationResult:
     selections: np.ndarray  # (rounds, N): object id each agent selected in each round
 
 
-def _reach(cost: np.ndarray, loc: np.ndarray, where: np.ndarray) -> np.ndarray:
-    """C[i, j] = cost_j + |where_i - loc_j|_1 for objects i (rows) and agents j (columns)."""
-    return (cost[None, :] + np.abs(where[:, None, 0] - loc[None, :, 0])
-            + np.abs(where[:, None, 1] - loc[None, :, 1]))
+def _reach(cost: np.ndarray, loc: np.ndarray, where: np.ndarray,
+           period: np.ndarray | None = None) -> np.ndarray:
+    """C[i, j] = cost_j + |where_i - loc_j|_1 for objects i (rows) and agents j (columns); for
+    agents of period k, when the d moves started at cost_j are done (``arrival``)."""
+    dist = (np.abs(where[:, None, 0] - loc[None, :, 0]) + np.abs(where[:, None, 1] - loc[None, :, 1]))
+    if period is None:
+        return cost[None, :] + dist
+    return arrival_np(cost[None, :], dist, period[None, :])
+
+
+def _carry_times(m_p: int, carry: int, periods) -> tuple[int, int]:
+    """(start, finish) of a carry whose group is complete at m_p: the group moves in the steps
+    all its members can move in (unit speed: m_p, m_p + carry)."""
+    k = group_period(periods)
+    start = -(-m_p // k) * k
+    return start, arrival(m_p, carry, k)
 
 
 def coordinate(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Sequence[int]],
-               objects: Sequence[ObjectSpec]) -> CoordinationResult:
+               objects: Sequence[ObjectSpec], periods: Sequence[int] | None = None) -> CoordinationResult:
     """Schedule ``objects`` on the agents whose free time is ``cost`` and position ``loc``.
 
     ``agent_ids`` must be ascending (the tie-break order). Returns the schedule in scheduling
-    order. Cost per round is O(M·N) numpy work on the agents just assigned.
+    order. Cost per round is O(M·N) numpy work on the agents just assigned. ``periods``: each
+    agent moves every k steps (None: the paper's unit speed).
     """
     ids = np.asarray(agent_ids, dtype=np.int64)
     if ids.size and np.any(np.diff(ids) <= 0):
@@ -77,7 +91,10 @@ def coordinate(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Sequ
     dest = np.array([o.destination for o in objs], dtype=np.int64)
     carry = np.abs(where - dest).sum(axis=1)
 
-    reach = _reach(cost, loc, where)   # (M, N); rows of scheduled objects are set to _FAR
+    per = None if periods is None else np.asarray(periods, dtype=np.int64).reshape(-1)
+    if per is not None and (per.size != n or np.any(per < 1)):
+        raise ValueError("periods must give every agent a period >= 1")
+    reach = _reach(cost, loc, where, per)   # (M, N); rows of scheduled objects are set to _FAR
     alive = np.ones(m, dtype=bool)
     schedule: list[Assignment] = []
     for r in range(m):
@@ -92,19 +109,21 @@ def coordinate(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Sequ
         p, m_p = int(cand[k]), int(m_i[k])
         # Step 3: the n_p cheapest agents (stable sort: ties to the lower agent id).
         group = np.sort(np.argsort(reach[p], kind="stable")[: need[p]])
-        finish = m_p + int(carry[p])
+        start, finish = _carry_times(m_p, int(carry[p]), () if per is None else per[group])
         cost[group] = finish
         loc[group] = dest[p]
-        schedule.append(Assignment(int(obj_ids[p]), tuple(int(a) for a in ids[group]), m_p, finish))
+        schedule.append(Assignment(int(obj_ids[p]), tuple(int(a) for a in ids[group]), start, finish))
         alive[p] = False
         # Only the group's columns changed; scheduled rows stay out of every argmin.
-        reach[:, group] = np.where(alive[:, None], _reach(cost[group], loc[group], where), _FAR)
+        reach[:, group] = np.where(alive[:, None], _reach(cost[group], loc[group], where,
+                                                          None if per is None else per[group]), _FAR)
         reach[p] = _FAR
     return CoordinationResult(schedule, cost, loc, selections)
 
 
 def order_groups(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Sequence[int]],
-                 objects: Sequence[ObjectSpec], groups: dict[int, tuple[int, ...]]) -> CoordinationResult:
+                 objects: Sequence[ObjectSpec], groups: dict[int, tuple[int, ...]],
+                 periods: Sequence[int] | None = None) -> CoordinationResult:
     """Schedule objects whose groups are already agreed (NCP): Algorithm Coordination's steps 2
     and 3 with the group of each object fixed.
 
@@ -131,7 +150,8 @@ def order_groups(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Se
     where = np.array([o.location for o in objs], dtype=np.int64)
     dest = np.array([o.destination for o in objs], dtype=np.int64)
     carry = np.abs(where - dest).sum(axis=1)
-    reach = _reach(cost, loc, where)
+    per = None if periods is None else np.asarray(periods, dtype=np.int64).reshape(-1)
+    reach = _reach(cost, loc, where, per)
     alive = np.ones(m, dtype=bool)
     schedule: list[Assignment] = []
     for _ in range(m):
@@ -140,12 +160,12 @@ def order_groups(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Se
         p = int(np.argmin(m_i))           # first minimum: the lower object id
         m_p = int(m_i[p])
         group = np.flatnonzero(member[p])
-        finish = m_p + int(carry[p])
+        start, finish = _carry_times(m_p, int(carry[p]), () if per is None else per[group])
         cost[group] = finish
         loc[group] = dest[p]
-        schedule.append(Assignment(int(obj_ids[p]), tuple(int(a) for a in ids[group]), m_p, finish))
+        schedule.append(Assignment(int(obj_ids[p]), tuple(int(a) for a in ids[group]), start, finish))
         alive[p] = False
-        reach[:, group] = _reach(cost[group], loc[group], where)
+        reach[:, group] = _reach(cost[group], loc[group], where, None if per is None else per[group])
     return CoordinationResult(schedule, cost, loc, np.zeros((0, ids.size), dtype=np.int64))
 
 

@@ -23,7 +23,7 @@ from ost_msgs_py.messages import ObjectFound, SearchDone
 from ost_ros.comm import CcpComm
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.hcp import HcpState
-from ost_ros.model import Cell, Scenario, manhattan
+from ost_ros.model import Cell, Scenario, arrival, arrival_np, manhattan
 from ost_ros.ncp import NcpComm, NegotiationSettings
 from ost_ros.result import AgentRecord, ObjectRecord, RunResult
 from ost_ros.search import route, sweep_plan
@@ -71,12 +71,13 @@ def _trigger_steps(team: TeamInfo, policy: CoordinationPolicy, end: int) -> set[
     if policy.interval is not None:
         return set(range(policy.interval - 1, end, policy.interval))
     if policy.area_fraction is not None and end > 0:
-        lengths = team.sweep_lengths()
-        total = int(lengths.sum())
+        moves = team.sweep_moves()
+        total = int(moves.sum())
         if total == 0:
             return set()
         ts = np.arange(end)
-        done = np.minimum(lengths[None, :], ts[:, None]).sum(axis=1) / total
+        steps = -(-ts[:, None] // team.period_array()[None, :])   # movable steps before t
+        done = np.minimum(moves[None, :], steps).sum(axis=1) / total
         before = np.concatenate([[0.0], done[:-1]])  # fraction at max(t-1, 0)
         f = policy.area_fraction
         # A superset (loose tolerance): the comm module makes the exact decision at these steps.
@@ -92,8 +93,11 @@ def _ccp_sensing(scenario: Scenario) -> tuple[TeamInfo, list[np.ndarray], np.nda
     team = TeamInfo.from_scenario(scenario)
     paths = sweep_paths(scenario)
     locs = np.array([o.location for o in scenario.objects], dtype=np.int64).reshape(-1, 2)
-    # first[j, i]: when agent j first senses object i during its search (-1: never).
+    # first[j, i]: when agent j first senses object i during its search (-1: never): it stands
+    # on path[idx] from arrival(0, idx, k_j) on (k_j = 1: time = index).
     first = np.array([first_sensing(p, locs) for p in paths], dtype=np.int64).reshape(len(paths), -1)
+    k = team.period_array()[:, None]
+    first = np.where(first >= 0, arrival_np(np.zeros_like(first), first, k), -1)
     masked = np.where(first >= 0, first, np.iinfo(np.int64).max)
     if not scenario.objects:
         return team, paths, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
@@ -107,7 +111,9 @@ def simulate_ccp(scenario: Scenario, policy: CoordinationPolicy,
     (every agent's comm module, fed each step while a negotiation runs: moves are messages)."""
     team, paths, found, finders = _ccp_sensing(scenario)
     ids = team.agent_ids
-    lengths = [int(x) for x in team.sweep_lengths()]
+    lengths = [int(x) for x in team.sweep_lengths()]       # when each search ends
+    walked = [int(x) for x in team.sweep_moves()]          # the cells it walks
+    periods = [int(x) for x in team.period_array()]
     objs = list(scenario.objects)
 
     events: dict[int, list] = {}
@@ -162,10 +168,10 @@ def simulate_ccp(scenario: Scenario, policy: CoordinationPolicy,
             loc[j] = o.destination
     for j, agent in enumerate(ids):
         home = manhattan(loc[j], team.bases[j])
-        finished = max(free[j], closed_at + 1) + home
+        finished = arrival(max(free[j], closed_at + 1), home, periods[j])
         travel[j] += home
-        idle = finished - lengths[j] - travel[j] - carry[j]
-        records.append(AgentRecord(agent, finished, idle, carry[j], lengths[j], travel[j]))
+        idle = finished - walked[j] - travel[j] - carry[j]
+        records.append(AgentRecord(agent, finished, idle, carry[j], walked[j], travel[j]))
     by_obj = {a.object: a for a in comm.schedule}
     objects = [ObjectRecord(o.id, by_obj[o.id].agents, by_obj[o.id].start, by_obj[o.id].finish)
                for o in objs]

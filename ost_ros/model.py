@@ -2,10 +2,17 @@
 
 Coordinates are cells ``(x, y)`` with ``0 <= x < width`` and ``0 <= y < height``; agents move
 4-connected, one cell per time step, and several agents may share a cell.
+
+Heterogeneous teams: an agent may have a ``period`` k ≥ 1 — it moves only at steps t with
+t mod k = 0 (one cell every k steps; k = 1 is the paper's robot). A group carries an object at
+the steps all its members can move (t mod lcm of their periods = 0).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
+
+import numpy as np
 
 from ost_msgs_py.messages import ObjectInfo
 
@@ -19,6 +26,33 @@ DEFAULT_NMAX = 10
 def manhattan(a: Cell, b: Cell) -> int:
     """Length of a shortest 4-connected path between two cells."""
     return abs(a[0] - b[0]) + abs(a[1] - b[1])
+
+
+def can_move(t: int, period: int) -> bool:
+    """Whether an agent (or group) of this period may move in step t."""
+    return t % period == 0
+
+
+def arrival(t0: int, d: int, period: int = 1) -> int:
+    """When d moves started at step t0 (or later) are done: the first movable step s ≥ t0, then
+    one move every ``period`` steps; a move in step s ends at s + 1. d = 0: t0."""
+    if d <= 0:
+        return t0
+    first = -(-t0 // period) * period
+    return first + (d - 1) * period + 1
+
+
+def arrival_np(t0: np.ndarray, d: np.ndarray, period: np.ndarray | int = 1) -> np.ndarray:
+    """:func:`arrival` elementwise (int64 arrays broadcast)."""
+    t0, d = np.asarray(t0, dtype=np.int64), np.asarray(d, dtype=np.int64)
+    k = np.asarray(period, dtype=np.int64)
+    first = -(-t0 // k) * k
+    return np.where(d > 0, first + (d - 1) * k + 1, t0)
+
+
+def group_period(periods) -> int:
+    """The period of a group carrying together: the lcm of its members' periods."""
+    return math.lcm(*(int(p) for p in periods)) if len(periods) else 1
 
 
 @dataclass(frozen=True)
@@ -41,10 +75,12 @@ ObjectSpec = ObjectInfo
 
 @dataclass(frozen=True)
 class AgentSpec:
-    """A robot of the team: its id and its base (where it starts and returns to)."""
+    """A robot of the team: its id, its base (where it starts and returns to) and its period
+    (it moves one cell every ``period`` steps; 1 = the paper's robots)."""
 
     id: int
     base: Cell
+    period: int = 1
 
 
 @dataclass(frozen=True)
@@ -88,3 +124,12 @@ class Scenario:
     @property
     def n_objects(self) -> int:
         return len(self.objects)
+
+    @property
+    def periods(self) -> tuple[int, ...]:
+        return tuple(a.period for a in self.agents)
+
+    @property
+    def heterogeneous(self) -> bool:
+        """Some agent is slower than one cell per step."""
+        return any(a.period != 1 for a in self.agents)

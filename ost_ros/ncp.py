@@ -38,6 +38,7 @@ from ost_msgs_py.messages import NegotiationOffer, ObjectFound, SearchDone, Sele
 from ost_ros.agent import CcpAgent
 from ost_ros.comm import CcpComm, CommState
 from ost_ros.coordination import CoordinationPolicy, order_groups
+from ost_ros.model import arrival_np
 from ost_ros.negotiation.protocol import claim_size, validate_delta
 from ost_ros.team import TeamInfo
 
@@ -308,7 +309,8 @@ class NcpComm(CcpComm):
         batch = [self.objects[i] for i in sorted(self.unscheduled)]
         self.unscheduled.clear()
         where = np.array([o.location for o in batch], dtype=np.int64).reshape(-1, 2)
-        reach = cost[None, :] + np.abs(where[:, None, :] - loc[None, :, :]).sum(axis=2)
+        reach = arrival_np(cost[None, :], np.abs(where[:, None, :] - loc[None, :, :]).sum(axis=2),
+                           self.team.period_array()[None, :])
         self.negotiations += 1
         self.negotiation = SlotNegotiation.open(self.negotiations, batch, reach)
         self._send_move(t)
@@ -324,7 +326,8 @@ class NcpComm(CcpComm):
         # Agreed: every agent orders the same groups the same way (a CCP schedule).
         cost, loc = self.costs(t)
         batch = [self.objects[i] for i in neg.objects]
-        result = order_groups(self.team.agent_ids, cost, loc, batch, neg.groups(self.team.agent_ids))
+        result = order_groups(self.team.agent_ids, cost, loc, batch, neg.groups(self.team.agent_ids),
+                              self.team.speed_periods)
         for a in result.schedule:
             members = [self.team.index(j) for j in a.agents]
             self.free_at[members] = a.finish

@@ -5,7 +5,7 @@ File format::
     grid: {width: 500, height: 200}
     partition: [5, 2]            # optional: Table 2 / closest aspect ratio by default
     agents:                      # optional: one per subarea, based at its sweep start
-      - {id: 0, base: [0, 1]}
+      - {id: 0, base: [0, 1]}    # optional period: 2 = moves one cell every 2 steps
     objects:
       - {id: 0, location: [12, 7], destination: [300, 150], required: 3}
     nmax: 10                     # optional: defaults to the largest ``required``
@@ -78,6 +78,8 @@ def build_scenario(grid: Grid, objects: list[ObjectSpec] | tuple[ObjectSpec, ...
         if not grid.contains(a.base):
             raise ScenarioError(f"agents[{k}].base: {list(a.base)} is off the "
                                 f"{grid.width}x{grid.height} grid")
+        if not isinstance(a.period, int) or a.period < 1:
+            raise ScenarioError(f"agents[{k}].period: must be an integer >= 1, got {a.period!r}")
     objects = sorted(objects, key=lambda o: o.id)
     largest = max((o.required for o in objects), default=1)
     nmax = largest if nmax is None else nmax
@@ -141,10 +143,11 @@ def _scenario_from_dict(data: Any) -> Scenario:
     if "agents" in data:
         agents = []
         for k, a in enumerate(v.listing(data["agents"], "agents")):
-            a = v.mapping(a, f"agents[{k}]", ("id", "base"), ("id",))
+            a = v.mapping(a, f"agents[{k}]", ("id", "base", "period"), ("id",))
             aid = v.integer(a["id"], f"agents[{k}].id", 0)
             base = v.cell(a["base"], f"agents[{k}].base") if "base" in a else None
-            agents.append((aid, base))
+            period = v.integer(a["period"], f"agents[{k}].period", 1) if "period" in a else 1
+            agents.append((aid, base, period))
     objects = []
     for k, o in enumerate(v.listing(data["objects"], "objects")):
         o = v.mapping(o, f"objects[{k}]", ("id", "location", "destination", "required"),
@@ -154,15 +157,15 @@ def _scenario_from_dict(data: Any) -> Scenario:
                                   v.cell(o["destination"], f"objects[{k}].destination"),
                                   v.integer(o["required"], f"objects[{k}].required", 1)))
     nmax = v.integer(data["nmax"], "nmax", 1) if "nmax" in data else None
-    if agents is not None and any(base is None for _, base in agents):
+    if agents is not None and any(base is None for _, base, _ in agents):
         # Agents without a base get their subarea's start cell: needs the partition first.
         if not agents:
             raise ScenarioError("agents: the team needs at least one agent")
         default = build_scenario(grid, [], n_agents=len(agents), partition=partition)
         order = sorted(range(len(agents)), key=lambda k: agents[k][0])
         bases = {agents[k][0]: default.subareas[rank].start for rank, k in enumerate(order)}
-        agents = [(aid, base if base is not None else bases[aid]) for aid, base in agents]
-    team = None if agents is None else [AgentSpec(aid, base) for aid, base in agents]
+        agents = [(aid, base if base is not None else bases[aid], per) for aid, base, per in agents]
+    team = None if agents is None else [AgentSpec(aid, base, per) for aid, base, per in agents]
     return build_scenario(grid, objects, partition=partition, agents=team, nmax=nmax)
 
 
@@ -195,7 +198,8 @@ def scenario_to_dict(scenario: Scenario) -> dict:
     return {
         "grid": {"width": scenario.grid.width, "height": scenario.grid.height},
         "partition": list(scenario.partition),
-        "agents": [{"id": a.id, "base": list(a.base)} for a in scenario.agents],
+        "agents": [{"id": a.id, "base": list(a.base), **({"period": a.period} if a.period != 1 else {})}
+                   for a in scenario.agents],
         "objects": [{"id": o.id, "location": list(o.location), "destination": list(o.destination),
                      "required": o.required} for o in scenario.objects],
         "nmax": scenario.nmax,

@@ -11,7 +11,7 @@ from typing import Callable
 from ost_ros.agent import CcpAgent
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.hcp import HcpAgent
-from ost_ros.model import Scenario
+from ost_ros.model import Scenario, group_period
 from ost_ros.ncp import NcpAgent, NegotiationSettings
 from ost_ros.result import RunResult
 from ost_ros.team import TeamInfo
@@ -26,7 +26,8 @@ def step_limit(scenario: Scenario) -> int:
     another (reach + carry ≤ 2·(W+H) each), then the way home. Beyond it, the run is deadlocked."""
     team = TeamInfo.from_scenario(scenario)
     span = scenario.grid.width + scenario.grid.height
-    return int(max(s.length for s in team.sweeps)) + 2 + (2 * len(scenario.objects) + 1) * span
+    slowest = group_period(scenario.periods)     # a group of every period moves this rarely
+    return int(team.sweep_lengths().max()) + 2 + (2 * len(scenario.objects) + 1) * span * slowest
 
 
 def make_agents(scenario: Scenario, protocol: str, policy: CoordinationPolicy,
@@ -35,6 +36,9 @@ def make_agents(scenario: Scenario, protocol: str, policy: CoordinationPolicy,
         raise ValueError(f"unknown protocol {protocol!r} (choose from {', '.join(PROTOCOLS)})")
     team = TeamInfo.from_scenario(scenario)
     if protocol == "hcp":
+        if scenario.heterogeneous:
+            raise ValueError("HCP runs unit-speed teams only (agent periods other than 1 need "
+                             "ccp or ncp)")
         return [HcpAgent(a.id, team) for a in scenario.agents]
     if protocol == "ncp":
         return [NcpAgent(a.id, team, policy, ncp) for a in scenario.agents]

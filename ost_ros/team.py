@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ost_ros.model import Cell, Grid, Scenario, Subarea
+from ost_ros.model import Cell, Grid, Scenario, Subarea, arrival_np
 from ost_ros.search import SweepSummary
 
 
@@ -21,6 +21,7 @@ class TeamInfo:
     bases: tuple[Cell, ...]
     areas: tuple[Subarea, ...]
     sweeps: tuple[SweepSummary, ...]
+    periods: tuple[int, ...] = ()       # each agent moves every k steps (empty: all 1)
 
     @classmethod
     def from_scenario(cls, scenario: Scenario) -> "TeamInfo":
@@ -31,6 +32,7 @@ class TeamInfo:
             bases=tuple(a.base for a in agents),
             areas=scenario.subareas,
             sweeps=tuple(SweepSummary.of(area, a.base) for area, a in zip(scenario.subareas, agents)),
+            periods=tuple(a.period for a in agents),
         )
 
     @property
@@ -40,14 +42,29 @@ class TeamInfo:
     def index(self, agent_id: int) -> int:
         return self.agent_ids.index(agent_id)
 
-    def sweep_lengths(self) -> np.ndarray:
+    @property
+    def speed_periods(self) -> tuple[int, ...] | None:
+        """The periods for the cost model, or None for a unit-speed team (the paper's case)."""
+        return self.periods if any(k != 1 for k in self.periods) else None
+
+    def period_array(self) -> np.ndarray:
+        return np.array(self.periods or (1,) * self.size, dtype=np.int64)
+
+    def sweep_moves(self) -> np.ndarray:
+        """Cells each agent's search walks (its path length)."""
         return np.array([s.length for s in self.sweeps], dtype=np.int64)
+
+    def sweep_lengths(self) -> np.ndarray:
+        """When each agent's search ends (L_j): its path walked at its own period."""
+        return arrival_np(np.zeros(self.size, dtype=np.int64), self.sweep_moves(), self.period_array())
 
     def sweep_ends(self) -> np.ndarray:
         return np.array([s.end for s in self.sweeps], dtype=np.int64).reshape(-1, 2)
 
     def searched_fraction(self, t: int) -> float:
         """Share of the whole team's sweep done by time ``t`` (same for every agent)."""
-        lengths = self.sweep_lengths()
-        total = int(lengths.sum())
-        return 1.0 if total == 0 else float(np.minimum(lengths, max(t, 0)).sum()) / total
+        moves = self.sweep_moves()
+        total = int(moves.sum())
+        k = self.period_array()
+        done = -(-max(t, 0) // k)          # movable steps 0, k, 2k, ... before t
+        return 1.0 if total == 0 else float(np.minimum(moves, done).sum()) / total

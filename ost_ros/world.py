@@ -1,10 +1,11 @@
 """Ground truth of a run: where agents and objects are, what each agent senses, which actions
 are legal. The in-process simulator and the ROS world node both drive this class.
 
-Actions of one step are applied simultaneously. Rules: one 4-connected cell per step on the grid;
-an object moves only when at least ``required`` agents standing on its cell carry it in the same
-direction in the same step (fewer carriers just hold it: they wait for their group); it is
-delivered the moment it reaches its destination. Illegal actions (off the grid, not a unit move,
+Actions of one step are applied simultaneously. Rules: one 4-connected cell per step on the grid,
+and an agent of period k only in steps t with t mod k = 0; an object moves only when at least
+``required`` agents standing on its cell carry it in the same direction in the same step, in a
+step every one of them may move in (fewer carriers, or a step the slowest cannot move in: they
+hold it); it is delivered the moment it reaches its destination. Illegal actions (off the grid, not a unit move,
 carrying from another cell, carriers pulling different ways, ...) are rejected with a reason (the
 agent stays where it is) and counted in the result.
 """
@@ -14,7 +15,7 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 
 from ost_msgs_py.messages import Action, ActionKind, Observation
-from ost_ros.model import Cell, Scenario
+from ost_ros.model import Cell, Scenario, can_move, group_period
 from ost_ros.motion import DIRECTIONS, apply
 from ost_ros.result import AgentRecord, ObjectRecord, RunResult
 
@@ -39,6 +40,7 @@ class World:
 
     def __post_init__(self) -> None:
         self.positions: dict[int, Cell] = {a.id: a.base for a in self.scenario.agents}
+        self.periods: dict[int, int] = {a.id: a.period for a in self.scenario.agents}
         self.bases: dict[int, Cell] = dict(self.positions)
         self.objects: dict[int, _Obj] = {o.id: _Obj(o, o.location) for o in self.scenario.objects}
         self._at: dict[Cell, set[int]] = defaultdict(set)   # undelivered objects by cell
@@ -97,6 +99,9 @@ class World:
                 self._reject(act, f"{target} is off the grid")
                 continue
             if act.kind is ActionKind.MOVE:
+                if not can_move(self.t, self.periods[act.agent]):
+                    self._reject(act, f"moves every {self.periods[act.agent]} steps, not in step {self.t}")
+                    continue
                 moves[act.agent] = target
                 if act.state == "SEARCHING":
                     rec.search += 1
@@ -125,8 +130,10 @@ class World:
             for act in here:
                 self._reject(act, f"carriers of object {oid} pull in {len(directions)} directions")
             return
-        if len(here) < obj.spec.required:
-            # Not an error: the agents hold the object and wait for the rest of the group.
+        if len(here) < obj.spec.required or not can_move(
+                self.t, group_period([self.periods[a.agent] for a in here])):
+            # Not an error: the agents hold the object and wait for the rest of the group (or
+            # for a step in which the slowest of them can move).
             for act in here:
                 self.records[act.agent].idle += 1
             return

@@ -20,6 +20,17 @@ def at_least(minimum: int):
 positive, natural = at_least(1), at_least(0)
 
 
+def period_list(text: str) -> list[int]:
+    """argparse type: comma-separated integers >= 1 (agent periods)."""
+    try:
+        values = [int(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
+    if not values or min(values) < 1:
+        raise argparse.ArgumentTypeError(f"every period must be at least 1, got {text!r}")
+    return values
+
+
 def fraction(text: str) -> float:
     """argparse type: a number in (0, 1]."""
     try:

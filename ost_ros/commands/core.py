@@ -2,17 +2,18 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from pathlib import Path
 from typing import Any
 
 from ost_ros import validate as v
-from ost_ros.commands.args import fraction, leaf, load_scenario_arg, natural, positive
+from ost_ros.commands.args import fraction, leaf, load_scenario_arg, natural, period_list, positive
 from ost_ros.errors import UsageError
 from ost_ros.coordination import CoordinationPolicy, coordinate
 from ost_ros.model import DEFAULT_HEIGHT, DEFAULT_NMAX, DEFAULT_WIDTH, Grid, ObjectSpec
-from ost_ros.scenario import ScenarioError, dump_scenario, generate_scenario
+from ost_ros.scenario import ScenarioError, build_scenario, dump_scenario, generate_scenario
 from ost_ros.bounds import lower_bound
 from ost_ros.ncp import NegotiationSettings
 from ost_ros.simulator import ENGINES, PROTOCOLS, choose_engine, simulate
@@ -33,6 +34,9 @@ def register(sub) -> None:
     p.add_argument("--height", type=positive, default=DEFAULT_HEIGHT, help="grid height (200)")
     p.add_argument("--nmax", type=positive, default=DEFAULT_NMAX,
                    help="largest number of agents an object needs (10)")
+    p.add_argument("--periods", type=period_list, default=None,
+                   help="heterogeneous team: comma-separated periods (agent k moves one cell every "
+                        "periods[k mod len] steps), e.g. 1,1,2,3 (default: all 1, the paper's)")
     p.add_argument("-o", "--output", help="file to write (default: standard output)")
 
     p = leaf(sub, "sim", cmd_sim, help="simulate a scenario in-process",
@@ -80,6 +84,12 @@ def cmd_generate(args: argparse.Namespace) -> int:
     try:
         scenario = generate_scenario(args.agents, args.objects, args.seed,
                                      Grid(args.width, args.height), args.nmax)
+        if args.periods:
+            # a heterogeneous team: agent k moves every periods[k mod len] steps
+            agents = [dataclasses.replace(a, period=args.periods[k % len(args.periods)])
+                      for k, a in enumerate(scenario.agents)]
+            scenario = build_scenario(scenario.grid, scenario.objects, partition=scenario.partition,
+                                      agents=agents, nmax=scenario.nmax)
     except ScenarioError as exc:
         raise UsageError(str(exc)) from None
     text = dump_scenario(scenario)
@@ -102,6 +112,9 @@ def cmd_sim(args: argparse.Namespace) -> int:
     ncp = NegotiationSettings(delta=args.ncp_delta, timeout_rounds=args.ncp_timeout)
     scenario = load_scenario_arg(args.scenario, args.agents)
     policy = CoordinationPolicy(ci=args.ci, interval=args.interval, area_fraction=args.area_fraction)
+    if scenario.heterogeneous and args.protocol == "hcp":
+        raise UsageError(f"{args.scenario}: HCP runs unit-speed teams only (some agent has a "
+                         "period other than 1); use --protocol ccp or ncp")
     show = sys.stderr.isatty() if args.progress is None else args.progress
     bar = None
     hooks = []

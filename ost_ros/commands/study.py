@@ -46,6 +46,9 @@ def register(sub) -> None:
 def cmd_optimal(args: argparse.Namespace) -> int:
     scenario = load_scenario_arg(args.scenario, args.agents)
     m, n = scenario.n_objects, scenario.n_agents
+    if scenario.heterogeneous:
+        raise UsageError(f"{args.scenario}: the exact search is for unit-speed teams (some agent "
+                         "has a period other than 1)")
     if m > MAX_OPTIMAL_OBJECTS:
         raise UsageError(f"{args.scenario}: {m} objects is too many for the exact search (at most "
                          f"{MAX_OPTIMAL_OBJECTS}; its space is ~10^{search_space_order(m, n):.0f})")

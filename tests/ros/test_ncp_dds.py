@@ -61,3 +61,20 @@ def test_silent_negotiator_over_dds(tmp_path):
                  "--mute-negotiation", "1:0", "--run-dir", str(tmp_path / "run"))
     assert run.returncode == 0, run.stderr
     assert result_json(run.stdout) == expected
+
+
+def test_heterogeneous_team_over_dds(tmp_path):
+    # agents of periods 1, 2, 3, 1 (moves every k steps): the DDS run is still the in-process run
+    import dataclasses
+    from ost_ros.scenario import build_scenario
+    base = generate_scenario(4, 6, 5, Grid(30, 12), 3)
+    agents = [dataclasses.replace(a, period=k) for a, k in zip(base.agents, (1, 2, 3, 1))]
+    scenario = build_scenario(base.grid, base.objects, agents=agents, nmax=3)
+    path = tmp_path / "scenario.yaml"
+    path.write_text(dump_scenario(scenario))
+    for protocol in ("ccp", "ncp"):
+        expected = reference(scenario, protocol, CoordinationPolicy(ci=2))
+        run = ost_up("--scenario", str(path), "--protocol", protocol, "--ci", "2", "--json",
+                     "--run-dir", str(tmp_path / f"run_{protocol}"))
+        assert run.returncode == 0, run.stderr
+        assert result_json(run.stdout) == expected

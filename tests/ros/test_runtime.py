@@ -171,3 +171,15 @@ def test_ncp_moves_travel_as_their_own_part():
     assert rt._ready((1,))
     with pytest.raises(ProtocolViolation, match="channel"):
         rt.accept_batch(dataclasses.replace(parts[0], channel="bogus"))
+
+
+@pytest.mark.parametrize("protocol", ["ccp", "ncp"])
+def test_heterogeneous_team_equals_simulate(protocol):
+    from ost_ros.scenario import build_scenario
+    base = generate_scenario(4, 8, 3, Grid(30, 12), 3)
+    agents = [dataclasses.replace(a, period=k) for a, k in zip(base.agents, (1, 2, 3, 1))]
+    scenario = build_scenario(base.grid, base.objects, agents=agents, nmax=3)
+    policy = CoordinationPolicy(ci=2)
+    expected = simulate(scenario, protocol, policy).to_dict()
+    assert run(scenario, protocol, policy, 64, True)[0].to_dict() == expected
+    assert run(scenario, protocol, policy, 0, False)[0].to_dict() == expected
