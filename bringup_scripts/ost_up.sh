@@ -3,7 +3,7 @@
 #
 #   bringup_scripts/ost_up.sh --agents N (--objects M --seed S | --scenario FILE)
 #       [--protocol ccp|hcp|ncp] [--ci K | --interval T] [--width W --height H --nmax X]
-#       [--mute-negotiation AGENT:STEP]
+#       [--mute-negotiation AGENT:STEP] [--respawn-world K]
 #       [--domain-id D] [--run-dir DIR] [--json] [--no-skip] [--max-steps S]
 #       [--timeout SEC] [--background]
 #
@@ -12,7 +12,8 @@
 # and tears everything down — also on Ctrl-C or when a process dies (naming it). Logs and PIDs go
 # to the run directory (default: a new /tmp/ost_run.XXXXXX). --background returns once the run
 # started; `bringup_scripts/ost_down.sh RUN_DIR` stops it. Default: a free ROS_DOMAIN_ID, and DDS
-# traffic on the loopback interface only (bringup_scripts/dds_env.sh).
+# traffic on the loopback interface only (bringup_scripts/dds_env.sh). The world node checkpoints
+# its truth in the run directory; --respawn-world K restarts it from there if it dies (K times).
 set -uo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -24,7 +25,7 @@ die() { echo "$me: error: $*" >&2; exit 2; }
 say() { echo "$me: $*" >&2; }
 
 agents="" objects="" seed="" scenario="" protocol="ccp" ci="1" interval="" width="" height="" nmax=""
-mute=""
+mute="" respawn=0
 domain="${ROS_DOMAIN_ID:-}" run_dir="" json=0 skip=true max_steps=0 timeout=0 background=0
 need() { [ $# -ge 2 ] && [ -n "$2" ] || die "$1 needs a value"; }
 int() { [[ "$2" =~ ^[0-9]+$ ]] || die "$1: expected a non-negative integer, got '$2'"; }
@@ -46,10 +47,11 @@ while [ $# -gt 0 ]; do
     --timeout) need "$@"; int "$1" "$2"; timeout="$2"; shift 2 ;;
     --mute-negotiation) need "$@"; [[ "$2" =~ ^[0-9]+:[0-9]+$ ]] \
         || die "--mute-negotiation: expected AGENT:STEP, got '$2'"; mute="$2"; shift 2 ;;
+    --respawn-world) need "$@"; int "$1" "$2"; respawn="$2"; shift 2 ;;
     --json) json=1; shift ;;
     --no-skip) skip=false; shift ;;
     --background) background=1; shift ;;
-    -h|--help) sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) die "unknown argument '$1' (see --help)" ;;
   esac
 done
@@ -88,6 +90,7 @@ if [ "$background" = 1 ]; then
   [ -n "$height" ] && fwd+=(--height "$height")
   [ -n "$nmax" ] && fwd+=(--nmax "$nmax")
   [ -n "$mute" ] && fwd+=(--mute-negotiation "$mute")
+  [ "$respawn" -gt 0 ] && fwd+=(--respawn-world "$respawn")
   [ -n "$domain" ] && fwd+=(--domain-id "$domain")
   [ "$skip" = false ] && fwd+=(--no-skip)
   [ "$json" = 1 ] && fwd+=(--json)
@@ -166,6 +169,7 @@ cat > "$run_dir/world_params.yaml" <<EOF
     scenario: "$scenario"
     agents: $team
     result_file: "$run_dir/result.json"
+    checkpoint_file: "$run_dir/world.checkpoint"
     event_skipping: $skip
     max_steps: $max_steps
 EOF
@@ -218,9 +222,18 @@ while :; do
   if [ -f "$run_dir/result.json" ] && ! kill -0 "${pids[0]}" 2>/dev/null; then
     break
   fi
-  for p in "${pids[@]}"; do
+  for k in "${!pids[@]}"; do
+    p="${pids[$k]}"
     if ! kill -0 "$p" 2>/dev/null; then
       wait "$p"; rc=$?
+      if [ "${names[$p]}" = world ] && [ ! -f "$run_dir/result.json" ] && [ "$respawn" -gt 0 ]; then
+        respawn=$(( respawn - 1 ))
+        say "world (pid $p) died with exit code $rc; restarting it from its checkpoint ($respawn restarts left)"
+        "$bin/world_node" --ros-args --params-file "$run_dir/world_params.yaml" -p resume:=true \
+          >> "$run_dir/world.log" 2>&1 &
+        pids[$k]=$!; names[$!]="world"; echo $! > "$run_dir/world.pid"
+        continue
+      fi
       if [ "$rc" != 0 ] || [ ! -f "$run_dir/result.json" ]; then
         say "${names[$p]} (pid $p) died with exit code $rc before the result; see $run_dir/${names[$p]}.log"
         tail -n 3 "$run_dir/${names[$p]}.log" >&2

@@ -5,7 +5,10 @@
 Parameters: ``scenario`` (YAML), ``agents`` (team size override, 0 = the file's), ``max_steps``
 (0 = the simulator's step limit), ``result_file`` (JSON, same as ``ost sim --json``; '' = none),
 ``event_skipping`` (execute agents' plans for quiet steps), ``marker_every`` (publish
-/ost/markers every k ticks; 0 = never), ``exit_when_done`` (leave once the agents are gone).
+/ost/markers every k ticks; 0 = never), ``exit_when_done`` (leave once the agents are gone),
+``checkpoint_file`` (the truth is written there before every step is published; '' = none) and
+``resume`` (start from that checkpoint: a restarted world node continues the run — it publishes
+the step it was at again, and agents that had already answered answer again).
 
 Publishes /clock (sim time: step t = t seconds), /ost/markers, each agent's tick, /ost/run_end and
 the result on /ost/result (transient local). Invalid or out-of-turn messages are dropped with a
@@ -15,6 +18,8 @@ reason that goes into the result.
 from __future__ import annotations
 
 import json
+import os
+import pickle
 import sys
 import time
 from pathlib import Path
@@ -44,11 +49,12 @@ class WorldNode(Node):
     def __init__(self):
         super().__init__(tp.WORLD_NODE, namespace=tp.NAMESPACE)
         for name, default in (("scenario", ""), ("agents", 0), ("max_steps", 0), ("result_file", ""),
-                              ("event_skipping", True), ("marker_every", 1), ("exit_when_done", True)):
+                              ("event_skipping", True), ("marker_every", 1), ("exit_when_done", True),
+                              ("checkpoint_file", ""), ("resume", False)):
             self.declare_parameter(name, default)
         p = {n: self.get_parameter(n).value for n in ("scenario", "agents", "max_steps", "result_file",
                                                        "event_skipping", "marker_every",
-                                                       "exit_when_done")}
+                                                       "exit_when_done", "checkpoint_file", "resume")}
         if not p["scenario"]:
             raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
         for name in ("agents", "max_steps", "marker_every"):
@@ -76,6 +82,10 @@ class WorldNode(Node):
         self.t_start = 0.0
         self.last_progress = self.stall_since = time.monotonic()
         self.last_sent: list[String] = []      # what the current step published, for resend()
+        self.checkpoint_file = p["checkpoint_file"]
+        self.resumed = False
+        if p["resume"]:
+            self.load_checkpoint()
 
         q = tp.LOCKSTEP_QOS
         self.pub_clock = self.create_publisher(Clock, tp.CLOCK, tp.LATEST_QOS)
@@ -89,7 +99,47 @@ class WorldNode(Node):
                                                    tp.LATCHED_ALL_QOS)
         self.timer = self.create_timer(0.1, self.on_timer)
         self.publish_state(self.rt.world.t)
-        self.get_logger().info(f"waiting for {len(self.ids)} agents ({self.fingerprint})")
+        if self.resumed:
+            self.get_logger().info(f"resuming at step {self.rt.world.t} from {self.checkpoint_file}; "
+                                   f"waiting for {len(self.ids)} agents to match")
+        else:
+            self.get_logger().info(f"waiting for {len(self.ids)} agents ({self.fingerprint})")
+
+    # ------------------------------------------------------------------ checkpoint
+
+    def save_checkpoint(self) -> None:
+        """The whole truth and what this step publishes, written atomically (tmp + rename)."""
+        if not self.checkpoint_file:
+            return
+        state = {"fingerprint": self.fingerprint, "rt": self.rt, "ticks_sent": self.ticks_sent,
+                 "last_sent": [m.data for m in self.last_sent]}
+        tmp = f"{self.checkpoint_file}.tmp"
+        try:
+            with open(tmp, "wb") as f:
+                pickle.dump(state, f, protocol=pickle.HIGHEST_PROTOCOL)
+            os.replace(tmp, self.checkpoint_file)
+        except OSError as exc:
+            self.throttle.note(("checkpoint", "world"),
+                               f"checkpoint_file: cannot write {self.checkpoint_file} ({exc.strerror})")
+
+    def load_checkpoint(self) -> None:
+        if not self.checkpoint_file:
+            raise ParameterError("resume: needs a checkpoint_file")
+        try:
+            with open(self.checkpoint_file, "rb") as f:
+                state = pickle.load(f)
+        except FileNotFoundError:
+            self.get_logger().warning(f"resume: no checkpoint at {self.checkpoint_file}; starting afresh")
+            return
+        except (OSError, pickle.UnpicklingError, EOFError, AttributeError) as exc:
+            raise ParameterError(f"resume: cannot read {self.checkpoint_file} ({exc})") from None
+        if not isinstance(state, dict) or state.get("fingerprint") != self.fingerprint:
+            raise ParameterError(f"resume: {self.checkpoint_file} is not a checkpoint of this "
+                                 f"scenario ({self.fingerprint})")
+        self.rt = state["rt"]
+        self.ticks_sent = state["ticks_sent"]
+        self.last_sent = [String(data=d) for d in state["last_sent"]]
+        self.resumed = True
 
     # ------------------------------------------------------------------ start
 
@@ -107,11 +157,19 @@ class WorldNode(Node):
         self.try_start()
 
     def try_start(self) -> None:
-        if self.started or len(self.ready) < len(self.ids):
+        if self.started or (len(self.ready) < len(self.ids) and not self.resumed):
             return
         if any(p.get_subscription_count() < 1 for p in self.pub_tick.values()) \
                 or self.sub_acted.get_publisher_count() < len(self.ids):
             return  # the timer tries again
+        if self.resumed:
+            # The agents are mid-run: publish the checkpointed step again (resend does it).
+            self.started = True
+            self.t_start = time.monotonic()
+            self.get_logger().info(f"all {len(self.ids)} agents matched; resuming step {self.rt.world.t}")
+            self.publish_state(self.rt.world.t)
+            self.resend(all_agents=True)
+            return
         protocols = {r.protocol for r in self.ready.values()}
         if len(protocols) > 1:
             self.throttle.warn(tp.READY, "agents", f"mixed protocols {sorted(protocols)}")
@@ -149,26 +207,26 @@ class WorldNode(Node):
         self.publish_state(t)
         if isinstance(nxt, RunEnd):
             self.last_sent = [tp.to_string(nxt)]
+            self.save_checkpoint()
             self.pub_end.publish(self.last_sent[0])
             self.get_logger().info(f"run ended at step {nxt.steps} (completed: {nxt.completed}); "
                                    "collecting reports")
             return
-        self.last_sent = []
-        for tick in nxt:
-            msg = tp.to_string(tick)
-            self.last_sent.append(msg)
-            self.pub_tick[tick.observation.agent].publish(msg)
+        self.last_sent = [tp.to_string(tick) for tick in nxt]
         self.ticks_sent += 1
+        self.save_checkpoint()    # before publishing: a published step is always recoverable
+        for tick, msg in zip(nxt, self.last_sent):
+            self.pub_tick[tick.observation.agent].publish(msg)
 
-    def resend(self) -> None:
+    def resend(self, all_agents: bool = False) -> None:
         """A step waits too long: publish its ticks (to agents that have not acted) or the
         run_end again. Agents answer a tick they already answered by re-sending their answer."""
         self.last_progress = time.monotonic()
         if self.rt.ended is not None:
-            if self.rt.missing_reports and self.last_sent:
+            if (self.rt.missing_reports or all_agents) and self.last_sent:
                 self.pub_end.publish(self.last_sent[0])
             return
-        acted = set(self.rt.acted_agents())
+        acted = set() if all_agents else set(self.rt.acted_agents())
         for agent, msg in zip(self.ids, self.last_sent):
             if agent not in acted:
                 self.pub_tick[agent].publish(msg)
