@@ -150,7 +150,8 @@ class AgentRunner:
         if held is not None and held[1]:
             self.held_since = self.held_since or now
             if now - self.held_since > tp.RESEND_S and now - (self.resent_at or 0.0) > tp.RESEND_S:
-                self.pub_resend.publish(tp.to_string(Resend(self.rt.me, self.rt.last, held[1])))
+                self.pub_resend.publish(tp.to_string(Resend(self.rt.me, self.rt.last, held[1],
+                                                            self.rt.run or "")))
                 self.resent_at = now
             if now - self.held_since > STALL_S:
                 self.throttle.note(("stall", "barrier"),
@@ -171,6 +172,9 @@ class AgentRunner:
     # ------------------------------------------------------------------ traffic
 
     def _progress(self) -> None:
+        while self.rt.dropped:   # batches of another run that came before the first tick
+            sender, why = self.rt.dropped.pop()
+            self.throttle.warn(tp.STEP_MESSAGES, f"agent {sender}", why)
         for out in self.rt.progress():
             if isinstance(out, StepMessages):
                 pub = self.pub_neg if out.channel == "negotiation" else self.pub_batch

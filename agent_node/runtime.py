@@ -47,6 +47,9 @@ class AgentRuntime:
     _batches_sent: dict[int, list[StepMessages]] = field(default_factory=dict)
     _resend: list = field(default_factory=list)
     _report: AgentReport | None = None
+    run: str | None = None              # the world's run id, from the first tick
+    _early: list = field(default_factory=list)   # batches that came before the first tick
+    dropped: list = field(default_factory=list)  # (sender, why) of messages of other runs
 
     @property
     def me(self) -> int:
@@ -55,6 +58,11 @@ class AgentRuntime:
     # ------------------------------------------------------------------ input
 
     def accept_batch(self, batch: StepMessages) -> None:
+        if self.run is None:
+            self._early.append(batch)   # checked once the first tick says which run this is
+            return
+        if batch.run != self.run:
+            raise ProtocolViolation(f"step_messages of run {batch.run!r}, this is run {self.run!r}")
         if batch.sender == self.me:
             return  # own batch: kept locally when sent
         if batch.sender not in self.team:
@@ -78,6 +86,8 @@ class AgentRuntime:
 
     def accept_resend(self, req: Resend) -> None:
         """A peer lacks this agent's batch of step ``req.t``: publish it again (if there was one)."""
+        if req.run != self.run:
+            raise ProtocolViolation(f"resend request of run {req.run!r}, this is run {self.run!r}")
         if req.sender not in self.team:
             raise ProtocolViolation(f"resend request from agent {req.sender}, not in the team")
         if self.me in req.peers:
@@ -87,6 +97,18 @@ class AgentRuntime:
         if tick.observation.agent != self.me or tick.observation.t != tick.t:
             raise ProtocolViolation(f"tick for agent {tick.observation.agent} step "
                                     f"{tick.observation.t}, this is agent {self.me}")
+        if self.run is not None and tick.run != self.run:
+            raise ProtocolViolation(f"tick of run {tick.run!r}, this is run {self.run!r}")
+        if self.run is None and tick.t == 0 and tick.last == -1:
+            self.run = tick.run
+            early, self._early = self._early, []
+            for b in early:
+                try:
+                    self.accept_batch(b)
+                except ProtocolViolation as exc:
+                    self.dropped.append((b.sender, str(exc)))
+        elif self.run is None:
+            raise ProtocolViolation(f"tick for step {tick.t} before this agent's first tick")
         if tick == self._tick:
             return  # re-sent while still held: nothing new
         if tick == self._last_tick:
@@ -102,6 +124,8 @@ class AgentRuntime:
         self._tick = tick
 
     def accept_end(self, end: RunEnd) -> None:
+        if end.run != self.run:
+            raise ProtocolViolation(f"run_end of run {end.run!r}, this is run {self.run!r}")
         if self._report is not None:
             if self._report not in self._resend:   # the world re-sent run_end: report again
                 self._resend.append(self._report)
@@ -172,9 +196,9 @@ class AgentRuntime:
             self._own = list(messages)
             self.sent += len(messages)
             self._plan = self._make_plan(obs, action) if self.lookahead and not messages else ()
-            step_out: list = [Acted(action, len(messages), self._plan)]
+            step_out: list = [Acted(action, len(messages), self._plan, self.run)]
             if messages:
-                batches = split_batch(self.me, tick.t, messages)
+                batches = split_batch(self.me, tick.t, messages, self.run)
                 step_out.extend(batches)
                 self._batches_sent[tick.t] = batches
                 # A peer is at most one lockstep step behind: keep the last few batches only.
@@ -276,15 +300,16 @@ class AgentRuntime:
         return AgentReport(self.me, protocol, self.trigger if protocol != "hcp" else "help",
                            getattr(comm, "predicted_makespan", None),
                            int(getattr(comm, "coordinations", 0)), schedule, found,
-                           tuple(getattr(self.agent, "warnings", ())), self.sent, repr(view))
+                           tuple(getattr(self.agent, "warnings", ())), self.sent, repr(view),
+                           run=self.run or "")
 
 
-def split_batch(sender: int, t: int, messages: list) -> list[StepMessages]:
+def split_batch(sender: int, t: int, messages: list, run: str = "") -> list[StepMessages]:
     """A step's messages as batches per channel: NCP moves on ``negotiation``, the rest on ``step``."""
     moves = tuple(m for m in messages if isinstance(m, NegotiationOffer))
     rest = tuple(m for m in messages if not isinstance(m, NegotiationOffer))
     parts = [(c, ms) for c, ms in (("step", rest), ("negotiation", moves)) if ms]
-    return [StepMessages(sender, t, ms, c, len(parts)) for c, ms in parts]
+    return [StepMessages(sender, t, ms, c, len(parts), run) for c, ms in parts]
 
 
 def _plan_step(obs: Observation, action: Action, reads: bool) -> PlanStep:

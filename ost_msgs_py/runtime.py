@@ -17,6 +17,9 @@
   the same result as the in-process simulator.
 
 Like :mod:`ost_msgs_py.messages`: frozen dataclasses, a ``TYPE`` tag and a ``version`` field.
+Every message of a run carries the world's ``run`` id (random per run, kept across a world
+restart): agents learn it from their first tick, and anything stamped with another run's id — a
+stray publisher, a leftover node of an earlier run — is dropped with a warning.
 """
 from __future__ import annotations
 
@@ -62,6 +65,7 @@ class Tick:
     last: int
     observation: Observation
     peers: tuple[int, ...] = ()
+    run: str = ""                          # the world's run id (strays of other runs are dropped)
     version: int = RUNTIME_VERSION
 
 
@@ -95,6 +99,7 @@ class Acted:
     action: Action
     sent: int
     plan: tuple[PlanStep, ...] = ()
+    run: str = ""                          # the world's run id (strays of other runs are dropped)
     version: int = RUNTIME_VERSION
 
 
@@ -116,6 +121,7 @@ class StepMessages:
     messages: tuple[AnyMessage, ...] = ()
     channel: str = "step"
     parts: int = 1
+    run: str = ""                          # the world's run id (strays of other runs are dropped)
     version: int = RUNTIME_VERSION
 
 
@@ -128,6 +134,7 @@ class Resend:
     sender: int
     t: int
     peers: tuple[int, ...]
+    run: str = ""                          # the world's run id (strays of other runs are dropped)
     version: int = RUNTIME_VERSION
 
 
@@ -142,6 +149,7 @@ class RunEnd:
     last: int
     completed: bool
     peers: tuple[int, ...] = ()
+    run: str = ""                          # the world's run id (strays of other runs are dropped)
     version: int = RUNTIME_VERSION
 
 
@@ -170,6 +178,7 @@ class AgentReport:
     warnings: tuple[str, ...]
     messages: int                          # protocol messages this agent sent
     view: str = ""                         # what agents must agree on (CCP: schedule, HCP: groups)
+    run: str = ""                          # the world's run id (strays of other runs are dropped)
     version: int = RUNTIME_VERSION
 
 

@@ -28,6 +28,7 @@ class WorldRuntime:
     scenario: Scenario
     max_steps: int | None = None
     skipping: bool = True
+    run: str = ""                # the run id stamped on every message of the run
     world: World = field(init=False)
     messages: int = 0            # protocol messages the agents broadcast (as counted by ost sim)
     round_trips: int = 0         # steps run in lockstep (one Tick/Acted exchange each)
@@ -49,6 +50,8 @@ class WorldRuntime:
 
     def accept_acted(self, acted: Acted) -> None:
         a = acted.action
+        if acted.run != self.run:
+            raise ProtocolViolation(f"action of run {acted.run!r}, this is run {self.run!r}")
         if a.agent not in self.ids:
             raise ProtocolViolation(f"action from agent {a.agent}, not in the team")
         if a.t < self.world.t and self._answered.get(a.agent) == acted:
@@ -101,13 +104,15 @@ class WorldRuntime:
     def _next(self, last: int, peers: tuple[int, ...]) -> list[Tick] | RunEnd:
         w = self.world
         if w.done or w.t >= self.limit:
-            self.ended = RunEnd(w.t, last, w.done, peers)
+            self.ended = RunEnd(w.t, last, w.done, peers, self.run)
             return self.ended
-        return [Tick(w.t, last, w.observe(i), peers) for i in self.ids]
+        return [Tick(w.t, last, w.observe(i), peers, self.run) for i in self.ids]
 
     # ------------------------------------------------------------------ result
 
     def accept_report(self, report: AgentReport) -> None:
+        if report.run != self.run:
+            raise ProtocolViolation(f"report of run {report.run!r}, this is run {self.run!r}")
         if self.ended is None:
             raise ProtocolViolation(f"report of agent {report.agent} before the run ended")
         if report.agent not in self.ids:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import os
 import pickle
+import secrets
 import sys
 import time
 from pathlib import Path
@@ -68,7 +69,9 @@ class WorldNode(Node):
             raise ParameterError(f"scenario: {exc}") from None
         self.scenario = scenario
         self.fingerprint = tp.scenario_fingerprint(scenario)
-        self.rt = WorldRuntime(scenario, p["max_steps"] or None, p["event_skipping"])
+        # A fresh id per run: messages of any other run (a stray node) are told apart.
+        self.rt = WorldRuntime(scenario, p["max_steps"] or None, p["event_skipping"],
+                               run=secrets.token_hex(6))
         self.result_file = p["result_file"]
         self.marker_every = p["marker_every"]
         self.exit_when_done = p["exit_when_done"]

@@ -164,7 +164,7 @@ def test_ncp_moves_travel_as_their_own_part():
     scenario = generate_scenario(2, 2, 1, Grid(12, 6), 2)
     ids = (0, 1)
     rt = AgentRuntime(make_agents(scenario, "ncp", CoordinationPolicy())[0], ids)
-    rt.last = 5
+    rt.last, rt.run = 5, ""      # as if its first tick (of run "") had come
     rt.accept_batch(wire(parts[1]))
     assert not rt._ready((1,))
     rt.accept_batch(wire(parts[0]))
@@ -183,3 +183,25 @@ def test_heterogeneous_team_equals_simulate(protocol):
     expected = simulate(scenario, protocol, policy).to_dict()
     assert run(scenario, protocol, policy, 64, True)[0].to_dict() == expected
     assert run(scenario, protocol, policy, 0, False)[0].to_dict() == expected
+
+
+def test_messages_of_another_run_are_dropped():
+    scenario = generate_scenario(2, 2, 1, Grid(12, 6), 2)
+    policy = CoordinationPolicy()
+    ids = (0, 1)
+    agents = make_agents(scenario, "ccp", policy)
+    world = WorldRuntime(scenario, run="r1")
+    rt = AgentRuntime(agents[0], ids)
+    stray = StepMessages(1, 0, (), run="other")
+    rt.accept_batch(stray)                      # before the first tick: held, then judged
+    ticks = world.start()
+    rt.accept_tick(ticks[0])
+    assert rt.run == "r1" and rt.dropped and "run 'other'" in rt.dropped[0][1]
+    with pytest.raises(ProtocolViolation, match="run 'other'"):
+        rt.accept_batch(stray)
+    out = rt.progress()
+    acted = next(m for m in out if isinstance(m, Acted))
+    assert acted.run == "r1"
+    world.accept_acted(acted)
+    with pytest.raises(ProtocolViolation, match="action of run 'x'"):
+        world.accept_acted(dataclasses.replace(acted, run="x"))

@@ -1,0 +1,84 @@
+"""Isolation over DDS: two runs at once (each on its own domain) do not interfere, and a stray
+publisher on a run's own domain sending well-formed but false messages — another run's step
+messages and actions claiming to be agent 1, with a selection that contradicts the algorithm —
+is detected (warned, naming the topic and the claimed sender) and ignored: the run still equals
+``ost sim``."""
+import subprocess
+import sys
+import threading
+
+from dds_helpers import ost_up, reference, result_json, ros_env
+from ost_ros.coordination import CoordinationPolicy
+from ost_ros.model import Grid
+from ost_ros.scenario import dump_scenario, generate_scenario
+
+STRAY = r"""
+import sys, time, rclpy
+from std_msgs.msg import String
+from agent_node import transport as tp
+from ost_msgs_py.messages import Action, ActionKind, Selection
+from ost_msgs_py.runtime import Acted, StepMessages
+rclpy.init()
+node = rclpy.create_node("stray")
+batch = node.create_publisher(String, tp.STEP_MESSAGES, tp.LOCKSTEP_QOS)
+acted = node.create_publisher(String, tp.ACTED, tp.LOCKSTEP_QOS)
+end = time.monotonic() + 30
+while batch.get_subscription_count() < 4 and time.monotonic() < end:
+    rclpy.spin_once(node, timeout_sec=0.05)
+for t in range(0, 300):   # false selections for every step, claiming agent 1, from "another run"
+    batch.publish(tp.to_string(StepMessages(1, t, (Selection(1, t, 1, (99,)),), run="stray")))
+    acted.publish(tp.to_string(Acted(Action(1, t, ActionKind.WAIT), 0, (), run="stray")))
+end = time.monotonic() + 2.0
+while time.monotonic() < end:
+    rclpy.spin_once(node, timeout_sec=0.05)
+node.destroy_node(); rclpy.shutdown()
+print("sent")
+"""
+
+
+def scenario_file(tmp_path, name, seed):
+    s = generate_scenario(4, 8, seed, Grid(30, 12), 4)
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(dump_scenario(s))
+    return path, reference(s, "ccp", CoordinationPolicy())
+
+
+def test_two_runs_at_once_do_not_interfere(tmp_path):
+    runs = {name: scenario_file(tmp_path, name, seed) for name, seed in (("a", 1), ("b", 2))}
+    out = {}
+
+    def go(name):
+        out[name] = ost_up("--scenario", str(runs[name][0]), "--json", "--no-skip",
+                           "--run-dir", str(tmp_path / f"run_{name}"))
+    threads = [threading.Thread(target=go, args=(n,)) for n in runs]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    domains = set()
+    for name, (_, expected) in runs.items():
+        assert out[name].returncode == 0, out[name].stderr
+        assert result_json(out[name].stdout) == expected
+        domains.add(out[name].stderr.split("ROS_DOMAIN_ID=")[1].split(",")[0])
+    assert len(domains) == 2
+
+
+def test_stray_publisher_is_detected_and_ignored(tmp_path, domain):
+    path, expected = scenario_file(tmp_path, "s", 3)
+    result = {}
+    th = threading.Thread(target=lambda: result.update(run=ost_up(
+        "--scenario", str(path), "--json", "--no-skip", "--domain-id", str(domain),
+        "--run-dir", str(tmp_path / "run"))))
+    th.start()
+    stray = subprocess.run([sys.executable, "-c", STRAY], env=ros_env(domain),
+                           capture_output=True, text=True, timeout=90)
+    th.join()
+    assert stray.returncode == 0 and "sent" in stray.stdout, stray.stderr
+    run = result["run"]
+    assert run.returncode == 0, run.stderr
+    assert result_json(run.stdout) == expected
+    logs = {p.name: p.read_text() for p in (tmp_path / "run").glob("*.log")}
+    assert "dropped message on /ost/acted from agent 1: action of run 'stray'" in logs["world.log"]
+    assert any("from agent 1: step_messages of run 'stray'" in text
+               for name, text in logs.items() if name.startswith("agent_"))
+    assert not any("Traceback" in text for text in logs.values())
