@@ -1,7 +1,8 @@
 """Negotiation-based task subdivision and allocation (Rossi, Aldama, Barrientos 2015).
 
 ROS-free: tasks (areas, target points), private rewards, Rubinstein's alternating offers,
-proposal search, multi-party strategies and an exact solver for the target-point tables.
+proposal search, multi-party strategies, an exact solver for the target-point tables, and
+negotiated search subareas for OST teams of different speeds (``partition``).
 Offers travel as plain data (``messages``) so a transport can carry them unchanged.
 
 Names are imported lazily so that ``ost --help`` does not pay for shapely and numpy.
@@ -18,6 +19,7 @@ _EXPORTS = {
     "estimate_discount": "protocol", "claim_size": "protocol", "AgentSpec": "agents",
     "NegotiationResult": "multiparty", "negotiate": "multiparty", "Offer": "messages",
     "AreaSearch": "proposals", "optimal_allocation": "optimal",
+    "SearchRobot": "partition", "SearchTeam": "partition", "negotiate_partition": "partition",
 }
 __all__ = sorted(_EXPORTS)
 

@@ -3,6 +3,7 @@
     ost negotiate run --task area --robots 3 [--delta 0.98] [--json]
     ost negotiate run --file task.yaml [--json]
     ost negotiate reproduce --out DIR [--quick] [--seed S] [--runs K] [--jobs J]
+    ost negotiate partition [--file team.yaml] [--robots N --periods 1,2,1 --width W --height H] [--json] [--plot F.png]
 """
 from __future__ import annotations
 
@@ -53,6 +54,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     rep.add_argument("--jobs", type=int, help="worker processes (default: up to 2 cores)")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     rep.set_defaults(func=cmd_reproduce, prog=rep.prog)
+
+    part = sub.add_parser("partition", help="negotiate search subareas for robots of different speeds; compare "
+                                            "with the paper's equal partition")
+    part.add_argument("--file", type=Path, help="YAML/JSON team file: grid: {width, height}, robots: [{id, period, "
+                                                "forbidden: [[x0, y0, x1, y1], ...]}], delta (flags override it)")
+    part.add_argument("--robots", type=int, help="number of robots (default 4, or as many as --periods / the file give)")
+    part.add_argument("--periods", help="steps per cell moved, comma-separated, one per robot (default 1 each)")
+    part.add_argument("--width", type=int, help="grid width in cells (default 100)")
+    part.add_argument("--height", type=int, help="grid height in cells (default 40)")
+    part.add_argument("--delta", type=float, help="the fastest robot's discount factor (default 0.95)")
+    part.add_argument("--rule", help="where the speed preference lives: patience (default) or reward")
+    part.add_argument("--seed", type=int, help="random seed (default 0)")
+    part.add_argument("--max-rounds", type=int, help="time-out in rounds (default 200)")
+    part.add_argument("--json", action="store_true", help="print the result as JSON")
+    part.add_argument("--plot", type=Path, help="write the ownership maps (negotiated, equal) to this PNG")
+    part.set_defaults(func=cmd_partition, prog=part.prog)
 
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1], prog=p.prog)
 
@@ -231,4 +248,28 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise UsageError(f"cannot write into {args.out}: {exc.strerror or exc}") from None
     print(f"report written to {args.out / 'report.md'} ({summary['elapsed_s']:.1f} s)")
+    return 0
+
+
+def cmd_partition(args: argparse.Namespace) -> int:
+    from .partition import SearchTeam, apply_flags, negotiate_partition
+
+    UsageError = _usage_error()
+    spec: dict[str, Any] = load_task_file(args.file) if args.file else {}
+    if args.plot is not None and not args.plot.parent.is_dir():
+        raise UsageError(f"--plot {args.plot}: directory {args.plot.parent} does not exist")
+    try:
+        spec = apply_flags(spec, width=args.width, height=args.height, robots=args.robots, periods=args.periods,
+                           delta=args.delta, seed=args.seed, max_rounds=args.max_rounds, rule=args.rule)
+        team = SearchTeam.from_spec(spec)
+        result = negotiate_partition(team)
+    except NegotiationError as exc:
+        raise UsageError(str(exc)) from None
+    if args.plot is not None:
+        try:
+            result.plot(args.plot)
+        except (OSError, ValueError) as exc:   # unwritable path, unknown image format
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise UsageError(f"cannot write plot {args.plot}: {first}") from None
+    print(json.dumps(result.to_dict(), indent=2) if args.json else result.table())
     return 0
