@@ -6,15 +6,21 @@ Parameters: ``agent_id``, ``scenario`` (YAML file), ``agents`` (team size overri
 file's), ``protocol``, ``ci`` / ``interval`` / ``area_fraction`` (the coordination trigger),
 ``lookahead`` (quiet steps planned for event skipping; 0 = off); NCP: ``ncp_delta``,
 ``ncp_timeout`` (rounds) and ``mute_negotiation_from`` (fault injection: from this step the
-negotiator sends no moves; -1 = never). The agent is built by the core's
+negotiator sends no moves; -1 = never), ``failure_timeout`` (s, the liveliness lease offered
+on ``/ost/agent_<id>/alive``: the world declares this robot failed once its process has been
+gone that long) and ``die_at_step`` (fault injection: the process SIGKILLs itself on the first
+tick of that step or later; -1 = never). The agent is built by the core's
 factory (``ost_ros.simulator.make_agents``) and runs unchanged: the node only orders its calls
 (:mod:`agent_node.runtime`) and moves messages.
 """
 from __future__ import annotations
 
+import os
+import signal
 import sys
 
 import rclpy
+import yaml
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_msgs.msg import String
@@ -120,6 +126,13 @@ class AgentRunner:
             self.pub_neg = node.create_publisher(String, tp.NEGOTIATION, q)
             self.sub_neg = node.create_subscription(String, tp.NEGOTIATION, self.on_negotiation, q)
         self.sub_result = node.create_subscription(String, tp.RESULT, self.on_result, tp.RESULT_QOS)
+        # Published to once (at ready); after that DDS asserts its liveliness by itself and the
+        # world watches it (failures).
+        lease = node.get_parameter("failure_timeout").value
+        if not isinstance(lease, (int, float)) or lease < 0:
+            raise ParameterError(f"failure_timeout: {lease!r} must be a non-negative number of seconds")
+        self.pub_alive = node.create_publisher(String, tp.alive_topic(me), tp.alive_qos(float(lease)))
+        self.die_at = node.get_parameter("die_at_step").value
         self.timer = node.create_timer(0.1, self.on_timer)
 
     # ------------------------------------------------------------------ discovery
@@ -133,12 +146,15 @@ class AgentRunner:
                 and self.sub_batch.get_publisher_count() >= self.n
                 and self.sub_tick.get_publisher_count() >= 1
                 and self.sub_end.get_publisher_count() >= 1
+                and self.pub_alive.get_subscription_count() >= 1
                 and (self.pub_neg is None or (self.pub_neg.get_subscription_count() >= self.n
                                               and self.sub_neg.get_publisher_count() >= self.n)))
 
     def on_timer(self) -> None:
         if not self.ready_sent:
             if self.matched():
+                # One sample asserts this robot's liveliness at once (the world waits for it)
+                self.pub_alive.publish(String(data=f"agent {self.rt.me}"))
                 self.pub_ready.publish(tp.to_string(Ready(self.rt.me, self.protocol, self.fingerprint)))
                 self.ready_sent = True
                 self.world_seen = True
@@ -198,6 +214,13 @@ class AgentRunner:
         self._progress()
 
     def on_tick(self, msg: String) -> None:
+        if self.die_at >= 0:   # fault injection: die as a robot does, with no last word
+            tick = tp.decode_or_warn(msg, self.tick_topic, Tick, self.throttle)
+            if tick is not None and tick.t >= self.die_at:
+                self.node.get_logger().warning(f"die_at_step {self.die_at}: killing this process "
+                                               f"(SIGKILL) on the tick of step {tick.t}")
+                sys.stderr.flush()
+                os.kill(os.getpid(), signal.SIGKILL)
         self._feed(msg, self.tick_topic, Tick, self.rt.accept_tick)
 
     def on_batch(self, msg: String) -> None:
@@ -213,9 +236,13 @@ class AgentRunner:
         self._feed(msg, tp.RUN_END, RunEnd, self.rt.accept_end)
 
     def on_result(self, msg: String) -> None:
-        # The world has every report: this agent's job is over.
+        # The world has every report: this agent's job is over. A result before this agent
+        # finished: the world ended the run early (a failure its protocol cannot recover from).
         if self.rt.finished:
             self.done = True
+        elif self.rt.run is not None:
+            self.node.get_logger().error("the world ended the run before this agent finished; exiting")
+            self.exit_code, self.done = 1, True
 
 
 def declare(node: Node) -> None:
@@ -230,6 +257,43 @@ def declare(node: Node) -> None:
     node.declare_parameter("interval", 0)
     node.declare_parameter("area_fraction", 0.0)
     node.declare_parameter("lookahead", 64)
+    node.declare_parameter("failure_timeout", tp.FAILURE_TIMEOUT_S)
+    node.declare_parameter("die_at_step", -1)
+
+
+def agent_id_from_args(argv: list[str]) -> int | None:
+    """``agent_id`` as the ROS arguments set it (``-p``/``--param agent_id:=N`` or a
+    ``--params-file``; the last assignment wins, as in rcl), or None when unset or not an int.
+    The node still declares and checks the parameter itself; this only picks its name."""
+    value = None
+    ros, k = False, 0
+    while k < len(argv):
+        a = argv[k]
+        if a == "--ros-args":
+            ros = True
+        elif a == "--":
+            ros = False
+        elif ros and a in ("-p", "--param") and k + 1 < len(argv):
+            name, _, v = argv[k + 1].partition(":=")
+            if name == "agent_id":
+                value = v
+            k += 1
+        elif ros and a == "--params-file" and k + 1 < len(argv):
+            try:
+                with open(argv[k + 1]) as f:
+                    doc = yaml.safe_load(f)
+                for section in (doc or {}).values():
+                    params = (section or {}).get("ros__parameters", {}) if isinstance(section, dict) else {}
+                    if isinstance(params, dict) and "agent_id" in params:
+                        value = params["agent_id"]
+            except (OSError, yaml.YAMLError, AttributeError):
+                pass   # the node reports a bad params file itself
+            k += 1
+        k += 1
+    try:
+        return int(value) if value is not None and int(value) >= 0 else None
+    except (TypeError, ValueError):
+        return None
 
 
 def main(args=None) -> int:
@@ -237,14 +301,11 @@ def main(args=None) -> int:
     node = None
     code = 0
     try:
-        # The node's name is agent_<id>; the id is a parameter, so read it with a bootstrap node
-        # that is discarded (parameters from --ros-args apply to every node of the process).
-        boot = Node("agent_param_reader", namespace=tp.NAMESPACE, start_parameter_services=False,
-                    enable_rosout=False)
-        declare(boot)
-        agent_id = boot.get_parameter("agent_id").value
-        boot.destroy_node()
-        name = tp.agent_node_name(agent_id) if isinstance(agent_id, int) and agent_id >= 0 else "agent"
+        # The node's name is agent_<id>; the id is a parameter, read here from the ROS
+        # arguments. (A throw-away bootstrap node did this before: destroying it right after its
+        # creation now and then spun forever inside rcl, hanging the process at start.)
+        agent_id = agent_id_from_args(sys.argv if args is None else args)
+        name = tp.agent_node_name(agent_id) if agent_id is not None else "agent"
         node = AgentNode(name)
         runner = node.runner
         while rclpy.ok() and not runner.done:
@@ -263,6 +324,7 @@ def main(args=None) -> int:
         else:
             raise
     finally:
+        tp.guard_exit()   # never hang in teardown (see transport.guard_exit)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

@@ -8,17 +8,23 @@ with what to publish. Order inside the agent is exactly the in-process simulator
                          → act(observation t) → publish Acted(t) and, if any, StepMessages(t)
 
 A Tick is held until every listed peer's batch of step ``last`` is in (the counting barrier). The
-core agent runs unchanged; this class only orders its calls.
+core agent runs unchanged; this class only orders its calls. A failure the world announces for
+step ``last`` (``Tick.failed``) joins that step's inbox as an ``AgentLost``, after the peers'
+messages — the simulator's order. Batches are published before the action, and every agent
+keeps the batches of the last few steps, so a peer's batch that a failed sender got to only
+some agents is relayed by the others on a Resend.
 """
 from __future__ import annotations
 
 import copy
 from dataclasses import dataclass, field
 
-from ost_msgs_py.messages import Action, ActionKind, NegotiationOffer, Observation, ObjectInfo
+from ost_msgs_py.messages import (Action, ActionKind, AgentLost, NegotiationOffer, Observation,
+                                  ObjectInfo)
 from ost_msgs_py.runtime import (CHANNELS, ProtocolViolation, Acted, AgentReport, PlanStep, Resend,
                                  RunEnd, ScheduleEntry, StepMessages, Tick)
-from ost_ros.agent import CcpAgent, GlobalState
+from ost_ros.agent import CcpAgent
+from ost_ros.recovery import Sweep
 from ost_ros.model import can_move, group_period
 from ost_ros.motion import apply as move
 
@@ -46,6 +52,7 @@ class AgentRuntime:
     _last_out: list = field(default_factory=list)
     _batches_sent: dict[int, list[StepMessages]] = field(default_factory=dict)
     _resend: list = field(default_factory=list)
+    _relay: dict[int, dict[int, dict[str, StepMessages]]] = field(default_factory=dict)
     _report: AgentReport | None = None
     run: str | None = None              # the world's run id, from the first tick
     _early: list = field(default_factory=list)   # batches that came before the first tick
@@ -92,6 +99,11 @@ class AgentRuntime:
             raise ProtocolViolation(f"resend request from agent {req.sender}, not in the team")
         if self.me in req.peers:
             self._resend.extend(b for b in self._batches_sent.get(req.t, ()) if b not in self._resend)
+        for peer in req.peers:   # relay what this agent holds of others (a sender may be dead)
+            if peer in (self.me, req.sender):
+                continue
+            parts = self._relay.get(req.t, {}).get(peer) or self._batches.get(req.t, {}).get(peer) or {}
+            self._resend.extend(b for b in parts.values() if b not in self._resend)
 
     def accept_tick(self, tick: Tick) -> None:
         if tick.observation.agent != self.me or tick.observation.t != tick.t:
@@ -153,10 +165,14 @@ class AgentRuntime:
     def _ready(self, peers: tuple[int, ...]) -> bool:
         return all(p == self.me or self._has(p) for p in peers)
 
-    def _finish_step(self, peers: tuple[int, ...], until: int) -> None:
+    def _finish_step(self, peers: tuple[int, ...], until: int,
+                     failed: tuple[tuple[int, int], ...] = ()) -> None:
         """Comm module for ``self.last``, then replay the skipped steps up to ``until`` - 1."""
         if self.last >= 0:
             have = self._batches.pop(self.last, {})
+            self._relay[self.last] = have
+            while len(self._relay) > 3:
+                del self._relay[min(self._relay)]
             inbox = []
             for sender in self.team:
                 if sender == self.me:
@@ -167,6 +183,7 @@ class AgentRuntime:
                     for channel in ("negotiation", "step"):
                         if channel in parts:
                             inbox.extend(parts[channel].messages)
+            inbox.extend(AgentLost(a, f) for a, f in failed if f == self.last)
             self._learn(inbox)
             self.agent.communicate(self.last, inbox)
         # Plan about twice as far as the world last skipped: long quiet stretches get long plans,
@@ -187,7 +204,7 @@ class AgentRuntime:
         out, self._resend = self._resend, []
         if self._tick is not None and self._ready(self._tick.peers):
             tick, self._tick = self._tick, None
-            self._finish_step(tick.peers, tick.t)
+            self._finish_step(tick.peers, tick.t, tick.failed)
             obs = tick.observation
             self._learn(obs.sensed)
             action = self.agent.act(obs)
@@ -196,7 +213,9 @@ class AgentRuntime:
             self._own = list(messages)
             self.sent += len(messages)
             self._plan = self._make_plan(obs, action) if self.lookahead and not messages else ()
-            step_out: list = [Acted(action, len(messages), self._plan, self.run)]
+            # Batches first: once the world has the action, the batches are out (if this process
+            # dies right after, the world counts them and peers can relay them).
+            step_out: list = []
             if messages:
                 batches = split_batch(self.me, tick.t, messages, self.run)
                 step_out.extend(batches)
@@ -204,11 +223,12 @@ class AgentRuntime:
                 # A peer is at most one lockstep step behind: keep the last few batches only.
                 while len(self._batches_sent) > 3:
                     del self._batches_sent[min(self._batches_sent)]
+            step_out.append(Acted(action, len(messages), self._plan, self.run))
             self._last_tick, self._last_out = tick, step_out
             out.extend(step_out)
         if self._end is not None and self._tick is None and self._ready(self._end.peers):
             end, self._end = self._end, None
-            self._finish_step(end.peers, end.steps)
+            self._finish_step(end.peers, end.steps, end.failed)
             self.finished = True
             self._report = self.report()
             out.append(self._report)
@@ -248,12 +268,12 @@ class AgentRuntime:
         # CcpAgent looks at its sensor only while searching; for any other agent class assume it
         # always does (the world then also compares what is sensed: slower, never wrong).
         if type(agent).act is CcpAgent.act:
-            return agent.state is GlobalState.SEARCHING
+            return agent.reads_sensor()
         return True
 
     def _scheduled(self) -> dict[int, ScheduleEntry | object]:
         comm = getattr(self.agent, "comm", None)
-        return {a.object: a for a in getattr(comm, "schedule", ())}
+        return {a.object: a for a in getattr(comm, "schedule", ()) if not isinstance(a, Sweep)}
 
     def _next_position(self, pos, action: Action, t: int):
         if action.kind is ActionKind.MOVE:
@@ -292,7 +312,7 @@ class AgentRuntime:
     def report(self) -> AgentReport:
         comm = getattr(self.agent, "comm", None)
         schedule = tuple(ScheduleEntry(a.object, tuple(a.agents), a.start, a.finish)
-                         for a in getattr(comm, "schedule", ()))
+                         for a in getattr(comm, "schedule", ()) if not isinstance(a, Sweep))
         found = tuple((int(k), int(v)) for k, v in getattr(comm, "found_at", {}).items())
         protocol = self.agent.protocol
         # As ost_ros.simulator.finish_result: CCP/NCP agents agree on the schedule, HCP on the groups.

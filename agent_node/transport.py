@@ -7,10 +7,13 @@ result are transient-local, so a late joiner still gets them.
 """
 from __future__ import annotations
 
+import faulthandler
 import hashlib
 import time
 
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+from rclpy.duration import Duration
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
+                       ReliabilityPolicy)
 from std_msgs.msg import String
 
 from ost_msgs_py import codec
@@ -40,6 +43,26 @@ def agent_node_name(agent_id: int) -> str:
 def tick_topic(agent_id: int) -> str:
     """World → one agent: its observation of the step (one topic per robot, like a sensor)."""
     return f"{NAMESPACE}/{agent_node_name(agent_id)}/tick"
+
+
+def alive_topic(agent_id: int) -> str:
+    """Agent → world: nothing is published; its liveliness (QoS, asserted by DDS itself) is
+    how the world learns that the robot's process is gone."""
+    return f"{NAMESPACE}/{agent_node_name(agent_id)}/alive"
+
+
+# Liveliness lease (s): an agent whose liveliness is lost for it and then for as long again (with
+# nothing heard from it) is declared failed by the world: detection in about 2 leases.
+FAILURE_TIMEOUT_S = 1.0
+
+
+def alive_qos(lease_s: float) -> QoSProfile:
+    """AUTOMATIC liveliness with a finite lease: the DDS participant asserts it from its own
+    thread, so a busy Python agent is never mistaken for a dead one; a killed process stops
+    asserting and the world's reader reports it within the lease. ``lease_s`` <= 0: no lease."""
+    return QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE, liveliness=LivelinessPolicy.AUTOMATIC,
+                      liveliness_lease_duration=Duration(seconds=max(lease_s, 0.0)))  # 0: infinite
 
 
 # If a step stalls this long, the missing samples are asked for again (world: ticks and run_end;
@@ -123,3 +146,15 @@ def decode_or_warn(msg: String, topic: str, expected, throttle: Throttle):
     except MessageError as exc:
         throttle.warn(topic, codec.sender_of(msg.data), str(exc))
         return None
+
+
+# rcl now and then spins forever inside destroy_node (busy, holding the GIL; seen twice in about
+# 600 node processes here, once at exit and once destroying a node right after creating it), so
+# a node process could hang after its work is done.
+DESTROY_TIMEOUT_S = 5.0
+
+
+def guard_exit(seconds: float = DESTROY_TIMEOUT_S) -> None:
+    """Arm a C-level watchdog (faulthandler's own thread needs no GIL): if the process is still
+    alive ``seconds`` from now it prints where it hangs and exits with code 1."""
+    faulthandler.dump_traceback_later(seconds, exit=True)

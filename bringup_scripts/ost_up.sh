@@ -4,6 +4,8 @@
 #   bringup_scripts/ost_up.sh --agents N (--objects M --seed S | --scenario FILE)
 #       [--protocol ccp|hcp|ncp] [--ci K | --interval T] [--width W --height H --nmax X]
 #       [--mute-negotiation AGENT:STEP] [--respawn-world K]
+#       [--kill-agent AGENT:STEP]... [--failure-timeout SEC]
+#       [--hosts K [--loss PCT] [--discovery multicast|static|server]]
 #       [--domain-id D] [--run-dir DIR] [--json] [--no-skip] [--max-steps S]
 #       [--timeout SEC] [--background]
 #
@@ -14,6 +16,14 @@
 # started; `bringup_scripts/ost_down.sh RUN_DIR` stops it. Default: a free ROS_DOMAIN_ID, and DDS
 # traffic on the loopback interface only (bringup_scripts/dds_env.sh). The world node checkpoints
 # its truth in the run directory; --respawn-world K restarts it from there if it dies (K times).
+# --hosts K (root): the processes are spread over K simulated hosts (network namespaces on a bridge,
+# bringup_scripts/sim_hosts.sh; world on host 0, agents round-robin), DDS over UDP between them;
+# --loss PCT drops that share of every packet each host sends; --discovery static/server blocks
+# multicast and discovers through ROS_STATIC_PEERS / a Fast DDS discovery server on host 0.
+# An agent process that dies mid-run is not the end of it: the world declares the robot failed
+# once it has shown no liveliness for twice --failure-timeout (default 1 s) and the survivors
+# re-coordinate (ccp; hcp and ncp runs end with the reason). --kill-agent AGENT:STEP makes that
+# agent SIGKILL itself on the tick of that step (fault injection; repeatable).
 set -uo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -25,7 +35,7 @@ die() { echo "$me: error: $*" >&2; exit 2; }
 say() { echo "$me: $*" >&2; }
 
 agents="" objects="" seed="" scenario="" protocol="ccp" ci="1" interval="" width="" height="" nmax=""
-mute="" respawn=0
+mute="" respawn=0 hosts=0 loss=0 discovery="multicast" kills=() failure_timeout=1.0
 domain="${ROS_DOMAIN_ID:-}" run_dir="" json=0 skip=true max_steps=0 timeout=0 background=0
 need() { [ $# -ge 2 ] && [ -n "$2" ] || die "$1 needs a value"; }
 int() { [[ "$2" =~ ^[0-9]+$ ]] || die "$1: expected a non-negative integer, got '$2'"; }
@@ -48,10 +58,18 @@ while [ $# -gt 0 ]; do
     --mute-negotiation) need "$@"; [[ "$2" =~ ^[0-9]+:[0-9]+$ ]] \
         || die "--mute-negotiation: expected AGENT:STEP, got '$2'"; mute="$2"; shift 2 ;;
     --respawn-world) need "$@"; int "$1" "$2"; respawn="$2"; shift 2 ;;
+    --kill-agent) need "$@"; [[ "$2" =~ ^[0-9]+:[0-9]+$ ]] \
+        || die "--kill-agent: expected AGENT:STEP, got '$2'"; kills+=("$2"); shift 2 ;;
+    --failure-timeout) need "$@"; [[ "$2" =~ ^[0-9]+(\.[0-9]+)?$ ]] \
+        || die "--failure-timeout: expected seconds (a number), got '$2'"; failure_timeout="$2"
+      [[ "$2" == *.* ]] || failure_timeout="$2.0"; shift 2 ;;   # a float parameter
+    --hosts) need "$@"; int "$1" "$2"; hosts="$2"; shift 2 ;;
+    --loss) need "$@"; int "$1" "$2"; loss="$2"; shift 2 ;;
+    --discovery) need "$@"; discovery="$2"; shift 2 ;;
     --json) json=1; shift ;;
     --no-skip) skip=false; shift ;;
     --background) background=1; shift ;;
-    -h|--help) sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,29p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) die "unknown argument '$1' (see --help)" ;;
   esac
 done
@@ -68,6 +86,13 @@ fi
 [ -z "$domain" ] || [ "$domain" -le 232 ] || die "--domain-id: $domain is above 232"
 case "$protocol" in ccp|hcp|ncp) ;; *) die "--protocol: '$protocol' is not ccp, hcp or ncp" ;; esac
 [ -z "$mute" ] || [ "$protocol" = ncp ] || die "--mute-negotiation: only with --protocol ncp"
+case "$discovery" in multicast|static|server) ;; *) die "--discovery: '$discovery' is not multicast, static or server" ;; esac
+[ "$loss" -le 100 ] || die "--loss: a percentage 0..100"
+if [ "$hosts" -gt 0 ]; then
+  [ "$(id -u)" = 0 ] || die "--hosts: simulated hosts need root (network namespaces)"
+else
+  [ "$loss" = 0 ] && [ "$discovery" = multicast ] || die "--loss and --discovery need --hosts K"
+fi
 
 # ------------------------------------------------------------------ run directory, background
 if [ -z "$run_dir" ]; then
@@ -91,6 +116,9 @@ if [ "$background" = 1 ]; then
   [ -n "$nmax" ] && fwd+=(--nmax "$nmax")
   [ -n "$mute" ] && fwd+=(--mute-negotiation "$mute")
   [ "$respawn" -gt 0 ] && fwd+=(--respawn-world "$respawn")
+  for kv in "${kills[@]}"; do fwd+=(--kill-agent "$kv"); done
+  fwd+=(--failure-timeout "$failure_timeout")
+  [ "$hosts" -gt 0 ] && fwd+=(--hosts "$hosts" --loss "$loss" --discovery "$discovery")
   [ -n "$domain" ] && fwd+=(--domain-id "$domain")
   [ "$skip" = false ] && fwd+=(--no-skip)
   [ "$json" = 1 ] && fwd+=(--json)
@@ -127,6 +155,22 @@ fi
 export ROS_DOMAIN_ID="$domain"
 # Host-only traffic, UDP on loopback (bringup_scripts/dds_env.sh, docs/ros.md "Transport").
 . "$repo/bringup_scripts/dds_env.sh"
+netns=""
+if [ "$hosts" -gt 0 ]; then
+  netns="ost$domain"
+  block=(); [ "$discovery" = multicast ] || block=(--block-multicast)
+  ips=($(bash "$repo/bringup_scripts/sim_hosts.sh" up "$netns" "$hosts" --net "$domain" --loss "$loss" "${block[@]}")) \
+    || die "--hosts: could not create the simulated hosts"
+  export FASTRTPS_DEFAULT_PROFILES_FILE="$repo/bringup_scripts/fastdds_hosts_udp.xml"
+  export ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET
+  unset ROS_STATIC_PEERS ROS_DISCOVERY_SERVER
+  if [ "$discovery" = static ]; then
+    export ROS_STATIC_PEERS="$(IFS=';'; echo "${ips[*]}")"
+  elif [ "$discovery" = server ]; then
+    export ROS_DISCOVERY_SERVER="${ips[0]}:11811"
+  fi
+  host_of() { echo "${netns}_h$(( $1 % hosts ))"; }
+fi
 
 # ------------------------------------------------------------------ scenario and parameters
 if [ -z "$scenario" ]; then
@@ -162,6 +206,7 @@ cat > "$run_dir/params.yaml" <<EOF
     protocol: "$protocol"
     ci: $ci
     interval: ${interval:-0}
+    failure_timeout: $failure_timeout
 EOF
 cat > "$run_dir/world_params.yaml" <<EOF
 /**:
@@ -172,6 +217,7 @@ cat > "$run_dir/world_params.yaml" <<EOF
     checkpoint_file: "$run_dir/world.checkpoint"
     event_skipping: $skip
     max_steps: $max_steps
+    failure_timeout: $failure_timeout
 EOF
 
 # ------------------------------------------------------------------ processes and teardown
@@ -195,6 +241,7 @@ teardown() {
     grep -qs "/dev/shm/$f" /proc/[0-9]*/maps || rm -f "/dev/shm/$f"
   done
   rm -f "$run_dir"/*.pid
+  [ -n "$netns" ] && bash "$repo/bringup_scripts/sim_hosts.sh" down "$netns"
   [ -n "$domain_lock" ] && rm -rf "$domain_lock"
 }
 on_signal() { say "interrupted: stopping ${#pids[@]} processes"; teardown; exit 130; }
@@ -202,16 +249,36 @@ trap on_signal INT TERM
 
 t0=$(date +%s%N)
 elapsed_ms() { echo $(( ($(date +%s%N) - t0) / 1000000 )); }
-"$bin/world_node" --ros-args --params-file "$run_dir/world_params.yaml" > "$run_dir/world.log" 2>&1 &
-pids+=($!); names[$!]="world"; echo $! > "$run_dir/world.pid"
+launch() {   # launch HOST_INDEX COMMAND... &: on that simulated host if any; exec keeps $! the
+  local h="$1"; shift   # process's own PID (ip netns exec execs too)
+  if [ -n "$netns" ]; then exec ip netns exec "$(host_of "$h")" "$@"; else exec "$@"; fi
+}
+if [ "$discovery" = server ]; then
+  # the wheel's binary finds Fast DDS in the venv's lib/, its bundled libraries beside the wheel
+  fastlibs="$(ls -d "$venv"/lib/python3*/site-packages/ros_fastrtps.libs 2>/dev/null | head -n 1)"
+  launch 0 env LD_LIBRARY_PATH="$venv/lib:$fastlibs${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}" \
+    "$bin/fast-discovery-server" -i 0 -l "${ips[0]}" -p 11811 > "$run_dir/discovery_server.log" 2>&1 &
+  pids+=($!); names[$!]="discovery_server"; echo $! > "$run_dir/discovery_server.pid"
+fi
+launch 0 "$bin/world_node" --ros-args --params-file "$run_dir/world_params.yaml" > "$run_dir/world.log" 2>&1 &
+world_pid=$!; pids+=($world_pid); names[$world_pid]="world"; echo $world_pid > "$run_dir/world.pid"
+slot=0
 for i in $ids; do
+  slot=$(( slot + 1 ))
   extra=()   # fault injection: this agent's negotiator goes silent from a step on
   [ -n "$mute" ] && [ "${mute%%:*}" = "$i" ] && extra=(-p "mute_negotiation_from:=${mute##*:}")
-  "$bin/agent_node" --ros-args --params-file "$run_dir/params.yaml" -p "agent_id:=$i" "${extra[@]}" \
+  for kv in "${kills[@]}"; do   # fault injection: this agent's process dies at a step
+    [ "${kv%%:*}" = "$i" ] && extra+=(-p "die_at_step:=${kv##*:}")
+  done
+  launch "$slot" "$bin/agent_node" --ros-args --params-file "$run_dir/params.yaml" -p "agent_id:=$i" "${extra[@]}" \
     > "$run_dir/agent_$i.log" 2>&1 &
   pids+=($!); names[$!]="agent_$i"; echo $! > "$run_dir/agent_$i.pid"
 done
-say "started world + $n agents (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, run dir $run_dir)"
+if [ -n "$netns" ]; then
+  say "started world + $n agents on $hosts simulated hosts (${ips[*]}; loss $loss %, discovery $discovery; ROS_DOMAIN_ID=$ROS_DOMAIN_ID, run dir $run_dir)"
+else
+  say "started world + $n agents (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, run dir $run_dir)"
+fi
 
 started=0
 while :; do
@@ -219,20 +286,28 @@ while :; do
     started=1
     say "discovery complete: $n agents matched after $(elapsed_ms) ms"
   fi
-  if [ -f "$run_dir/result.json" ] && ! kill -0 "${pids[0]}" 2>/dev/null; then
+  if [ -f "$run_dir/result.json" ] && ! kill -0 "$world_pid" 2>/dev/null; then
     break
   fi
   for k in "${!pids[@]}"; do
     p="${pids[$k]}"
     if ! kill -0 "$p" 2>/dev/null; then
-      wait "$p"; rc=$?
+      wait "$p" 2>/dev/null; rc=$?
       if [ "${names[$p]}" = world ] && [ ! -f "$run_dir/result.json" ] && [ "$respawn" -gt 0 ]; then
         respawn=$(( respawn - 1 ))
         say "world (pid $p) died with exit code $rc; restarting it from its checkpoint ($respawn restarts left)"
-        "$bin/world_node" --ros-args --params-file "$run_dir/world_params.yaml" -p resume:=true \
+        launch 0 "$bin/world_node" --ros-args --params-file "$run_dir/world_params.yaml" -p resume:=true \
           >> "$run_dir/world.log" 2>&1 &
-        pids[$k]=$!; names[$!]="world"; echo $! > "$run_dir/world.pid"
+        world_pid=$!; pids[$k]=$world_pid; names[$world_pid]="world"; echo $world_pid > "$run_dir/world.pid"
         continue
+      fi
+      if [ -f "$run_dir/result.json" ]; then   # the run is over: everyone leaves
+        unset 'pids[k]'; continue
+      fi
+      if [[ "${names[$p]}" == agent_* ]] && grep -q "agents ready; step 0" "$run_dir/world.log" 2>/dev/null; then
+        say "${names[$p]} (pid $p) died mid-run (exit code $rc); the world declares it failed after" \
+            "2 x ${failure_timeout} s without its liveliness"
+        unset 'pids[k]'; continue
       fi
       if [ "$rc" != 0 ] || [ ! -f "$run_dir/result.json" ]; then
         say "${names[$p]} (pid $p) died with exit code $rc before the result; see $run_dir/${names[$p]}.log"

@@ -7,7 +7,8 @@ wire) and back with strict validation, so ``ros2 topic echo`` shows readable con
 Two families:
 - agent ↔ agent (the comm module): :class:`ObjectFound`, :class:`SearchDone`, :class:`Selection`,
   and the help-based protocol's :class:`HelpRequest`, :class:`HelpOffer`, :class:`HelpAccept`,
-  :class:`HelpRelease`, and the negotiation protocol's :class:`NegotiationOffer`;
+  :class:`HelpRelease`, the negotiation protocol's :class:`NegotiationOffer`, and for recovery
+  from a failed robot :class:`Status` (and the world's notice :class:`AgentLost`);
 - agent ↔ world (sensing and acting): :class:`Observation`, :class:`Action`.
 """
 from __future__ import annotations
@@ -149,6 +150,36 @@ class NegotiationOffer:
     version: int = SCHEMA_VERSION
 
 
+WORLD = -1   # sender of the world's notices
+
+
+@dataclass(frozen=True)
+class AgentLost:
+    """The world's notice that agent ``agent`` failed in step ``t``: it acted for the last time in
+    step t-1 and sent nothing from step t on. Every survivor gets it in the same step (the ROS
+    runtime carries it in ``Tick.failed``), so all agree on the survivor set."""
+
+    TYPE: ClassVar[str] = "agent_lost"
+    agent: int
+    t: int
+    sender: int = WORLD
+    version: int = SCHEMA_VERSION
+
+
+@dataclass(frozen=True)
+class Status:
+    """CCP recovery after a failure: when the sender is free of what it keeps doing (a carry
+    under way, its sweep) and where it then stands. Every survivor broadcasts one the step after
+    it learnt of the failure; all re-coordinate on them."""
+
+    TYPE: ClassVar[str] = "status"
+    sender: int
+    t: int
+    free_at: int
+    location: Cell
+    version: int = SCHEMA_VERSION
+
+
 # ----------------------------------------------------------------------------- agent ↔ world
 
 
@@ -188,7 +219,7 @@ class Action:
 
 
 AGENT_MESSAGES: tuple[type, ...] = (ObjectFound, SearchDone, Selection, HelpRequest, HelpOffer,
-                                    HelpAccept, HelpRelease, NegotiationOffer)
+                                    HelpAccept, HelpRelease, NegotiationOffer, Status, AgentLost)
 WORLD_MESSAGES: tuple[type, ...] = (Observation, Action)
 ALL_MESSAGES: dict[str, type] = {cls.TYPE: cls for cls in AGENT_MESSAGES + WORLD_MESSAGES}
 

@@ -54,6 +54,10 @@ class Ready:
 class Tick:
     """World → agent: observe and act for step ``t``.
 
+    ``failed``: every agent the world has declared failed, with the step it failed in (it sent
+    no action for that step). The agent adds an :class:`~ost_msgs_py.messages.AgentLost` for a
+    failure in step ``last`` to that step's inbox, after the peers' messages (as the simulator).
+
     ``peers``: the agents that broadcast protocol messages in step ``last`` (the previous step the
     agent acted on itself); the agent first runs its comm module for ``last`` with exactly those
     batches. Steps ``last+1 .. t-1`` were skipped: the world executed the agent's own plan for them
@@ -66,6 +70,7 @@ class Tick:
     observation: Observation
     peers: tuple[int, ...] = ()
     run: str = ""                          # the world's run id (strays of other runs are dropped)
+    failed: tuple[tuple[int, int], ...] = ()   # (agent, step it failed in), every failure so far
     version: int = RUNTIME_VERSION
 
 
@@ -150,6 +155,7 @@ class RunEnd:
     completed: bool
     peers: tuple[int, ...] = ()
     run: str = ""                          # the world's run id (strays of other runs are dropped)
+    failed: tuple[tuple[int, int], ...] = ()   # as in Tick
     version: int = RUNTIME_VERSION
 
 

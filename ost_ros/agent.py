@@ -11,6 +11,9 @@ inside a ROS 2 node. Per step, in the paper's order:
    coordinates when a coordination point is reached; the schedule applies from step t+1.
 
 Global FSA: SEARCHING → DECISION → HELPING → WAITING → MOVING → DECISION … → RETURNING → FINISH.
+After a team mate fails (the world's AgentLost): tasks not under way are dropped (HELPING,
+WAITING, MOVING with the dead robot, RETURNING, FINISH → DECISION), the agent says where it
+stands (Status), and DECISION may hand it a dead robot's unsearched cells (→ SEARCHING).
 """
 from __future__ import annotations
 
@@ -22,6 +25,7 @@ from ost_ros.comm import CcpComm
 from ost_ros.coordination import Assignment, CoordinationPolicy
 from ost_ros.model import Cell, can_move
 from ost_ros.motion import step_toward
+from ost_ros.recovery import Sweep
 from ost_ros.search import SearchModule, SearchState
 from ost_ros.team import TeamInfo
 
@@ -52,7 +56,7 @@ class CcpAgent:
         self.state = GlobalState.SEARCHING
         self.search = SearchModule.for_area(team.areas[k], self.base)
         self.comm = CcpComm(agent_id, team, policy or CoordinationPolicy())
-        self.tasks: deque[Assignment] = deque()   # own schedule, in scheduling order
+        self.tasks: deque[Assignment | Sweep] = deque()   # own schedule, in scheduling order
         self.current: Assignment | None = None
         self._seen_schedule = 0                   # how much of the global schedule was read
         self._outbox: list = []
@@ -64,6 +68,9 @@ class CcpAgent:
         self.t, self.position = obs.t, obs.position
         self._search(obs)
         kind, direction, obj = self._motion(obs)
+        if self.comm.recovering is not None and self.comm.recovering == obs.t - 1:
+            # the step after a failure was learnt: every survivor says where it stands
+            self._outbox.append(self.comm.status(obs.t, self.position, self.current))
         return Action(self.id, self.t, kind, direction, obj, self.state.value)
 
     def _search(self, obs: Observation) -> None:
@@ -87,7 +94,12 @@ class CcpAgent:
                 return self._walk(nxt)
             if s is GlobalState.DECISION:
                 self._read_schedule()
-                if self.tasks:
+                if self.tasks and isinstance(self.tasks[0], Sweep):
+                    # a failed team mate's unsearched cells: sweep them (sensing from here on)
+                    self.search = SearchModule(list(self.tasks.popleft().path))
+                    self.state = GlobalState.SEARCHING
+                    self._search(obs)
+                elif self.tasks:
                     self.current = self.tasks.popleft()
                     self.state = GlobalState.HELPING
                 elif self.comm.closed:
@@ -144,8 +156,30 @@ class CcpAgent:
     def communicate(self, t: int, messages: list) -> None:
         """Comm module for step ``t``: every agent's messages of the step (own included)."""
         self.comm.receive(t, messages)
+        if self.comm.reset:
+            self._drop_cancelled()
+
+    def _drop_cancelled(self) -> None:
+        """A team mate failed: keep only what is under way (a carry without it, a sweep)."""
+        self.comm.reset = False
+        self.tasks.clear()
+        self._seen_schedule = len(self.comm.schedule)   # kept entries are done or under way
+        if self.current is not None and self.current not in self.comm.schedule:
+            self.current = None
+        if self.current is None and self.state not in (GlobalState.SEARCHING, GlobalState.DECISION):
+            self.state = GlobalState.DECISION
 
     # ------------------------------------------------------------------ introspection
+
+    def reads_sensor(self) -> bool:
+        """Whether the next ``act`` looks at the sensor: while searching, or when a sweep taken
+        over from a failed team mate may start in it (event skipping predicts only those)."""
+        if self.state is GlobalState.SEARCHING:
+            return True
+        return self.state is GlobalState.DECISION and (
+            any(isinstance(x, Sweep) for x in self.tasks)
+            or any(isinstance(a, Sweep) and a.agent == self.id
+                   for a in self.comm.schedule[self._seen_schedule:]))
 
     @property
     def done(self) -> bool:

@@ -29,6 +29,7 @@ VERB_MODULES: tuple[str, ...] = (
     "ost_ros.negotiation.cli",
     "ost_ros.commands.ros",
     "ost_ros.commands.study",
+    "ost_ros.commands.faults",
 )
 
 

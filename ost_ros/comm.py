@@ -7,6 +7,9 @@ recompute them and record any disagreement (a faulty or false peer is detected, 
 
 Comm FSA: LISTENING —(coordination point)→ COORDINATING → LISTENING;
 LISTENING —(all agents finished searching)→ COORDINATING → CLOSED (final schedule known).
+Any state —(the world's AgentLost)→ RECOVERING —(every survivor's Status, next step)→
+COORDINATING → LISTENING or CLOSED: what the dead robot had not done is handed to survivors
+(:mod:`ost_ros.recovery`, docs/interpretation.md "Robot failures").
 """
 from __future__ import annotations
 
@@ -15,9 +18,13 @@ from enum import Enum
 
 import numpy as np
 
-from ost_msgs_py.messages import ObjectFound, SearchDone, Selection
+from dataclasses import replace
+
+from ost_msgs_py.messages import AgentLost, ObjectFound, SearchDone, Selection, Status
 from ost_ros.coordination import Assignment, CoordinationPolicy, coordinate
-from ost_ros.model import ObjectSpec, arrival_np
+from ost_ros.model import Cell, ObjectSpec, arrival_np, group_period
+from ost_ros.recovery import Sweep, drop_cell, remaining_sweep
+from ost_ros.search import SearchModule
 from ost_ros.team import TeamInfo
 
 # Selections of this many most recent coordinations are kept for cross-checking peers.
@@ -28,6 +35,7 @@ class CommState(str, Enum):
     LISTENING = "LISTENING"
     COORDINATING = "COORDINATING"
     NEGOTIATING = "NEGOTIATING"   # NCP only: a negotiation is under way (ost_ros.ncp)
+    RECOVERING = "RECOVERING"     # a robot failed: waiting for every survivor's Status
     CLOSED = "CLOSED"
 
 
@@ -47,7 +55,17 @@ class CcpComm:
     coordinations: int = 0
     predicted_makespan: int | None = None
     warnings: list[str] = field(default_factory=list)
-    _selections: dict[int, np.ndarray] = field(default_factory=dict)
+    # Failures: dead agent -> step it failed in; the step a failure was learnt in (statuses are
+    # due the next step); survivors' statuses; objects left where a failed group held them;
+    # objects no survivor group is large enough for; sweeps nobody owns yet.
+    lost: dict[int, int] = field(default_factory=dict)
+    recovering: int | None = None
+    statuses: dict[int, Status] = field(default_factory=dict)
+    drops: dict[int, Cell] = field(default_factory=dict)
+    impossible: set[int] = field(default_factory=set)
+    orphans: list[tuple[Cell, ...]] = field(default_factory=list)
+    reset: bool = False            # the agent drops its not-started tasks (set on a failure)
+    _selections: dict[int, tuple[tuple[int, ...], np.ndarray]] = field(default_factory=dict)
     _outbox: list = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -55,6 +73,9 @@ class CcpComm:
         self._lengths = self.team.sweep_lengths()
         self.free_at = np.zeros(n, dtype=np.int64)   # finish of each agent's last scheduled object
         self.free_loc = self.team.sweep_ends()       # where it then stands (sweep end if none)
+        # Search work still owed by each agent (its own sweep, then sweeps taken over).
+        self.sweeps: dict[int, list[Sweep]] = {}
+        self.owed = {j: 1 for j in self.team.agent_ids}
 
     # ------------------------------------------------------------------ incoming
 
@@ -66,7 +87,7 @@ class CcpComm:
             self.found_at[obj.id] = t
             self.unscheduled.add(obj.id)
             return True
-        if known != obj:
+        if known != obj and not (obj.id in self.drops and replace(known, location=obj.location) == obj):
             self.warnings.append(f"object {obj.id} reported as {obj} but known as {known}; kept")
         return False
 
@@ -76,13 +97,24 @@ class CcpComm:
             if isinstance(msg, ObjectFound):
                 self.note_found(msg.object, msg.t)
             elif isinstance(msg, SearchDone):
-                if msg.sender in self.team.agent_ids:
-                    self.searched.add(msg.sender)
+                if msg.sender in self.team.agent_ids and msg.sender not in self.lost:
+                    self.owed[msg.sender] = max(0, self.owed[msg.sender] - 1)
+                    if self.owed[msg.sender] == 0:
+                        self.searched.add(msg.sender)
             elif isinstance(msg, Selection):
                 self._check_selection(msg)
+            elif isinstance(msg, Status):
+                if msg.sender in self.team.agent_ids and msg.sender not in self.lost:
+                    self.statuses[msg.sender] = msg
+            elif isinstance(msg, AgentLost):
+                self._lose(msg.agent, msg.t)
+        if self.recovering is not None:
+            if self.recovering == t:
+                return            # statuses come next step
+            self._recover(t)
         if self.state is CommState.CLOSED:
             return
-        if len(self.searched) == self.team.size:
+        if self.all_searched:
             self._coordinate(t)
             self.state = CommState.CLOSED
             self.predicted_makespan = self._predict_makespan(t)
@@ -94,11 +126,12 @@ class CcpComm:
         if msg.sender == self.me or msg.sender not in self.team.agent_ids:
             return
         mine = self._selections.get(msg.coordination)
-        if mine is None:
+        if mine is None or msg.sender not in mine[0]:
             self.warnings.append(f"agent {msg.sender}: selection for unknown coordination "
                                  f"{msg.coordination}; ignored")
             return
-        expected = tuple(int(x) for x in mine[:, self.team.index(msg.sender)])
+        ids, selections = mine
+        expected = tuple(int(x) for x in selections[:, ids.index(msg.sender)])
         if tuple(msg.objects) != expected:
             self.warnings.append(f"agent {msg.sender}: selection {list(msg.objects)} in coordination "
                                  f"{msg.coordination} contradicts the algorithm ({list(expected)}); "
@@ -110,13 +143,32 @@ class CcpComm:
         """CA_j and loc_j for a coordination in step t: the schedule applies from step t+1."""
         return np.maximum(np.maximum(self.free_at, self._lengths), t + 1), self.free_loc.copy()
 
+    @property
+    def alive(self) -> tuple[int, ...]:
+        """Agent ids not known to have failed, ascending."""
+        return tuple(j for j in self.team.agent_ids if j not in self.lost)
+
+    @property
+    def all_searched(self) -> bool:
+        """Every survivor has done all its search work and no sweep is left without an owner."""
+        return (self.recovering is None and not self.orphans
+                and all(j in self.searched for j in self.alive))
+
     def _coordinate(self, t: int) -> None:
+        survivors = self.alive
+        for i in [i for i in self.unscheduled if self.objects[i].required > len(survivors)]:
+            # Fewer robots survive than this object needs: it cannot be moved any more.
+            self.unscheduled.discard(i)
+            self.impossible.add(i)
         if not self.unscheduled:
             return
         self.state = CommState.COORDINATING
         cost, loc = self.costs(t)
+        idx = [self.team.index(j) for j in survivors]
+        periods = self.team.speed_periods
         batch = [self.objects[i] for i in sorted(self.unscheduled)]
-        result = coordinate(self.team.agent_ids, cost, loc, batch, self.team.speed_periods)
+        result = coordinate(survivors, cost[idx], loc[idx], batch,
+                            None if periods is None else [periods[k] for k in idx])
         for a in result.schedule:
             members = [self.team.index(j) for j in a.agents]
             self.free_at[members] = a.finish
@@ -124,21 +176,132 @@ class CcpComm:
         self.schedule.extend(result.schedule)
         self.unscheduled.clear()
         self.coordinations += 1
-        self._selections[self.coordinations] = result.selections
+        self._selections[self.coordinations] = (survivors, result.selections)
         self._selections.pop(self.coordinations - _SELECTION_MEMORY, None)
-        mine = tuple(int(x) for x in result.selections[:, self.team.index(self.me)])
+        mine = tuple(int(x) for x in result.selections[:, survivors.index(self.me)])
         self._outbox.append(Selection(self.me, t, self.coordinations, mine))
         self.state = CommState.LISTENING
 
     def _predict_makespan(self, t: int) -> int:
         cost, loc = self.costs(t)
         bases = np.array(self.team.bases, dtype=np.int64).reshape(-1, 2)
-        return int(np.max(arrival_np(cost, np.abs(loc - bases).sum(axis=1), self.team.period_array())))
+        home = arrival_np(cost, np.abs(loc - bases).sum(axis=1), self.team.period_array())
+        return int(np.max(home[[self.team.index(j) for j in self.alive]]))
+
+    # ------------------------------------------------------------------ failures
+
+    def _sweeps_of(self, agent: int) -> list[Sweep]:
+        """An agent's search tasks: its own sweep (configuration every team mate can compute),
+        then the sweeps it took over."""
+        if agent not in self.sweeps:
+            k = self.team.index(agent)
+            path = tuple(SearchModule.for_area(self.team.areas[k], self.team.bases[k]).path)
+            self.sweeps[agent] = [Sweep(agent, path, 0, int(self.team.sweep_lengths()[k]))]
+        return self.sweeps[agent]
+
+    def _lose(self, agent: int, t: int) -> None:
+        """The world says ``agent`` failed in step t (it did not act in t). Everything not under
+        way by step t is cancelled and re-planned once every survivor has said where it stands
+        (its Status, next step); what the dead agent owed goes back into the pool."""
+        if agent not in self.team.agent_ids or agent in self.lost:
+            return
+        period = self.team.periods[self.team.index(agent)] if self.team.periods else 1
+        self.lost[agent] = t
+        self.searched.discard(agent)
+        if self.owed[agent] > 0:     # its unsensed cells: for a survivor to sweep
+            for sw in self._sweeps_of(agent):
+                rest = remaining_sweep(sw, t, period)
+                if rest:
+                    self.orphans.append(rest)
+        self.owed[agent] = 0
+        kept: list = []
+        for a in self.schedule:
+            if isinstance(a, Sweep):
+                if a.agent == agent:     # the dead agent's: orphaned above
+                    continue
+                if a.start > t:          # a survivor's take-over not begun: back into the pool
+                    self.orphans.append(a.path[a.walk:])
+                    self._sweeps_of(a.agent).remove(a)
+                    self.owed[a.agent] -= 1
+                    if self.owed[a.agent] == 0:
+                        self.searched.add(a.agent)
+                else:
+                    kept.append(a)
+                continue
+            if agent in a.agents and a.finish > t:
+                if a.start < t:          # carried since a.start, held from step t on
+                    o = self.objects[a.object]
+                    k = group_period([self.team.periods[self.team.index(j)] for j in a.agents]) \
+                        if self.team.periods else 1
+                    self.drops[a.object] = drop_cell(o.location, o.destination, a.start, t, k)
+                    self.objects[a.object] = replace(o, location=self.drops[a.object])
+                self.unscheduled.add(a.object)
+            elif a.start > t:            # not under way: re-planned with everything else
+                self.unscheduled.add(a.object)
+            else:
+                kept.append(a)
+        self.schedule[:] = kept
+        self.predicted_makespan = None   # made with the dead agent; predicted anew at the close
+        self.recovering = t
+        self.statuses.clear()
+        self.reset = True
+        self.state = CommState.RECOVERING
+
+    def status(self, t: int, at: Cell, current) -> Status:
+        """This agent's Status in step t (the step after it learnt of a failure): a carry
+        under way or its sweep runs on; otherwise it is free from t+1 where it stands (it waits
+        in step t)."""
+        if isinstance(current, Assignment) and current in self.schedule and current.finish > t:
+            return Status(self.me, t, current.finish, tuple(self.objects[current.object].destination))
+        if self.owed[self.me] > 0:
+            sw = [s for s in self._sweeps_of(self.me) if s.finish >= t]
+            if sw:
+                return Status(self.me, t, sw[-1].finish, tuple(sw[-1].path[-1]))
+        return Status(self.me, t, t + 1, tuple(at))
+
+    def _recover(self, t: int) -> None:
+        """Every survivor's Status is in: hand out the orphaned sweeps (each to the survivor free
+        first, ties to the lower id), then coordinate every unscheduled object."""
+        survivors = self.alive
+        missing = [j for j in survivors if j not in self.statuses]
+        if missing:   # cannot happen in lockstep; say so rather than plan on a guess
+            self.warnings.append(f"recovery in step {t}: no status from agents {missing}; "
+                                 "planning with what they were last known to do")
+        for j, st in self.statuses.items():
+            k = self.team.index(j)
+            self.free_at[k] = st.free_at
+            self.free_loc[k] = st.location
+            self._lengths[k] = min(self._lengths[k], st.free_at)
+        periods = self.team.period_array()
+        for cells in self.orphans:
+            cost, loc = self.costs(t)
+            idx = [self.team.index(j) for j in survivors]
+            k = idx[int(np.argmin(cost[idx]))]
+            j = self.team.agent_ids[k]
+            sw = Sweep.take_over(j, tuple(int(v) for v in loc[k]), int(cost[k]), cells, int(periods[k]))
+            self.schedule.append(sw)
+            self._sweeps_of(j).append(sw)
+            self.owed[j] += 1
+            self.searched.discard(j)
+            self.free_at[k] = sw.finish
+            self.free_loc[k] = sw.path[-1]
+            self._lengths[k] = sw.finish
+        self.orphans.clear()
+        self.recovering = None
+        self.statuses.clear()
+        self.state = CommState.LISTENING
+        self._coordinate(t)
+        self.state = CommState.LISTENING
 
     @property
     def closed(self) -> bool:
         """All agents have searched and every object is scheduled: nothing more will come."""
         return self.state is CommState.CLOSED
+
+    @property
+    def assignments(self) -> list[Assignment]:
+        """The global schedule's objects (without take-over sweeps), in scheduling order."""
+        return [a for a in self.schedule if isinstance(a, Assignment)]
 
     def drain(self) -> list:
         out, self._outbox = self._outbox, []

@@ -58,6 +58,7 @@ class RunResult:
     schedule: list = field(default_factory=list)          # planned Assignments, in order
     error: str | None = None
     lower_bound: int | None = None   # a makespan no run of the scenario can beat (ost_ros.bounds)
+    failures: list = field(default_factory=list)   # [{"agent", "step"}]: robots that failed
 
     def to_dict(self) -> dict[str, Any]:
         objects = []
@@ -83,6 +84,7 @@ class RunResult:
                           "finish": a.finish} for a in self.schedule],
             "rejections": self.rejections,
             "warnings": self.warnings,
+            "failures": self.failures,
             "error": self.error,
         }
 
@@ -104,7 +106,7 @@ class RunResult:
             found={o["id"]: o["found"] for o in d["objects"] if o.get("found") is not None},
             schedule=[Assignment(s["object"], tuple(s["agents"]), s["start"], s["finish"])
                       for s in d["schedule"]],
-            error=d["error"], lower_bound=d.get("lower_bound"))
+            error=d["error"], lower_bound=d.get("lower_bound"), failures=d.get("failures", []))
 
     def summary(self) -> str:
         """Human-readable report: headline figures, then one line per agent."""
@@ -122,6 +124,8 @@ class RunResult:
         lines.append(f"objects         {sum(o.delivered is not None for o in self.objects)}"
                      f"/{len(self.objects)} delivered")
         lines.append(f"coordinations   {self.coordinations}   messages {self.messages}")
+        for f in self.failures:
+            lines.append(f"failed          agent {f['agent']} in step {f['step']}")
         if self.rejections:
             lines.append(f"rejected actions {len(self.rejections)} (first: {self.rejections[0]})")
         if self.warnings:

@@ -8,6 +8,10 @@ step every one of them may move in (fewer carriers, or a step the slowest cannot
 hold it); it is delivered the moment it reaches its destination. Illegal actions (off the grid, not a unit move,
 carrying from another cell, carriers pulling different ways, ...) are rejected with a reason (the
 agent stays where it is) and counted in the result.
+
+A failed agent (``fail``) acts no more: it stays where it stopped, and an object it was carrying
+stays where its group held it. The run is then done when every object that the survivors can
+still carry (``required`` ≤ survivors) is delivered and every survivor is home.
 """
 from __future__ import annotations
 
@@ -37,6 +41,7 @@ class World:
     scenario: Scenario
     t: int = 0
     rejections: list[str] = field(default_factory=list)
+    failed: dict[int, int] = field(default_factory=dict)   # agent -> step it failed in
 
     def __post_init__(self) -> None:
         self.positions: dict[int, Cell] = {a.id: a.base for a in self.scenario.agents}
@@ -81,7 +86,12 @@ class World:
             if act.t != self.t:
                 self._reject(act, f"stamped for step {act.t}, world is at step {self.t}")
                 continue
+            if act.agent in self.failed:
+                self._reject(act, f"agent {act.agent} failed in step {self.failed[act.agent]}")
+                continue
             pos = self.positions[act.agent]
+            if act.state != FINISH_STATE and rec.finished is not None:
+                rec.finished = None   # called back to work (a team mate failed)
             if act.state == FINISH_STATE and rec.finished is None:
                 if pos == self.bases[act.agent]:
                     rec.finished = self.t
@@ -138,9 +148,11 @@ class World:
                 self.records[act.agent].idle += 1
             return
         target = apply(obj.at, here[0].direction)
+        group = tuple(sorted(a.agent for a in here))
         if obj.start is None:
             obj.start = self.t
-            obj.carriers = tuple(sorted(a.agent for a in here))
+        if obj.carriers != group:   # first lift, or picked up again after a carrier failed
+            obj.carriers = group
         self._at[obj.at].discard(oid)
         obj.at = target
         for act in here:
@@ -151,27 +163,53 @@ class World:
         else:
             self._at[target].add(oid)
 
+    # ------------------------------------------------------------------ failures
+
+    def fail(self, agent_id: int) -> None:
+        """Agent ``agent_id`` fails now (step ``t``): it does not act in this step or later."""
+        if agent_id in self.records and agent_id not in self.failed:
+            self.failed[agent_id] = self.t
+
+    @property
+    def survivors(self) -> int:
+        return len(self.records) - len(self.failed)
+
+    def undeliverable(self) -> list[int]:
+        """Undelivered objects needing more robots than survive."""
+        return sorted(i for i, o in self.objects.items()
+                      if o.delivered is None and o.spec.required > self.survivors)
+
     # ------------------------------------------------------------------ ending
 
     @property
     def done(self) -> bool:
-        return (all(o.delivered is not None for o in self.objects.values())
-                and all(r.finished is not None for r in self.records.values()))
+        n = self.survivors
+        return (all(o.delivered is not None or o.spec.required > n for o in self.objects.values())
+                and all(r.finished is not None for i, r in self.records.items()
+                        if i not in self.failed))
 
     def result(self, **extra) -> RunResult:
         agents = [self.records[a.id] for a in self.scenario.agents]
         objects = [ObjectRecord(o.spec.id, o.carriers, o.start, o.delivered)
                    for o in sorted(self.objects.values(), key=lambda o: o.spec.id)]
-        finished = [r.finished for r in agents]
+        finished = [r.finished for r in agents if r.id not in self.failed]
         delivered = [o.delivered for o in objects]
-        complete = self.done
-        return RunResult(
-            makespan=max(finished) if complete and finished else None,
+        done = self.done
+        left = self.undeliverable()
+        result = RunResult(
+            makespan=max(finished) if done and finished else None,
             last_delivery=max((d for d in delivered if d is not None), default=0),
-            completed=complete,
+            completed=done and not left,
             steps=self.t,
             agents=agents,
             objects=objects,
             rejections=list(self.rejections),
+            failures=[{"agent": a, "step": t} for a, t in sorted(self.failed.items())],
             **extra,
         )
+        if done and left:
+            need = max(self.objects[i].spec.required for i in left)
+            result.error = (f"{len(left)} of {len(objects)} objects cannot be delivered: objects "
+                            f"{left} need up to {need} robots and {self.survivors} survive (agents "
+                            f"{sorted(self.failed)} failed)")
+        return result

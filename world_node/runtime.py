@@ -9,6 +9,12 @@ Event skipping: if nobody broadcast in step t, every agent's plan covers step t+
 observation of each agent is what its plan expects, the world applies the planned actions
 itself and moves on without a round trip — repeated while that holds. The agents replay the same
 steps locally when the next tick arrives, so the run is step-for-step the lockstep run.
+
+Failures: ``fail(agent)`` (the node calls it when the agent's liveliness is lost) declares the
+agent failed in the current step — an action it may already have sent for it is discarded — so
+the step completes with the survivors, and every later tick tells everyone (``Tick.failed``).
+That is the simulator's ``failures={agent: step}`` run. A step with a failure is never skipped
+over: the notice is news to the agents, like a broadcast.
 """
 from __future__ import annotations
 
@@ -37,11 +43,44 @@ class WorldRuntime:
     _acted: dict[int, Acted] = field(default_factory=dict)
     _answered: dict[int, Acted] = field(default_factory=dict)   # each agent's latest answer
     _reports: dict[int, AgentReport] = field(default_factory=dict)
+    failed: dict[int, int] = field(default_factory=dict)   # agent -> step it failed in
+    protocol: str = "ccp"        # the agents' protocol: ccp re-coordinates after a failure
+    aborted: str | None = None   # why the run was ended early (a failure the protocol cannot take)
+    _gone: set[int] = field(default_factory=set)   # lost after the run ended (no report coming)
 
     def __post_init__(self) -> None:
         self.world = World(self.scenario)
         self.ids = tuple(a.id for a in self.scenario.agents)   # ascending, as in the simulator
         self.limit = self.max_steps if self.max_steps is not None else step_limit(self.scenario)
+
+    @property
+    def live(self) -> tuple[int, ...]:
+        """Agents not declared failed, ascending."""
+        return tuple(i for i in self.ids if i not in self.failed)
+
+    def fail(self, agent: int) -> RunEnd | list | None:
+        """Declare ``agent`` failed in the current step. Returns what to publish now if that
+        completes the step (the Tick list or RunEnd), else None. After the run's end only its
+        report stops being waited for."""
+        if agent not in self.ids or agent in self.failed or agent in self._gone:
+            return None
+        if self.ended is not None:
+            self._gone.add(agent)   # the run is over: it just will not report
+            return None
+        self.failed[agent] = self.world.t
+        self._acted.pop(agent, None)
+        self.world.fail(agent)
+        if self.protocol != "ccp":
+            self.aborted = (f"agent {agent} failed in step {self.world.t} and this protocol does "
+                            "not recover from failures (ccp does)")
+            self.ended = RunEnd(self.world.t, self.world.t - 1, False, (), self.run, self._failed())
+            return self.ended
+        self.limit = max(self.limit, step_limit(self.scenario, len(self.failed))) \
+            if self.max_steps is None else self.limit
+        return self.advance() if self.step_complete else None
+
+    def _failed(self) -> tuple[tuple[int, int], ...]:
+        return tuple(sorted(self.failed.items()))
 
     # ------------------------------------------------------------------ stepping
 
@@ -54,6 +93,9 @@ class WorldRuntime:
             raise ProtocolViolation(f"action of run {acted.run!r}, this is run {self.run!r}")
         if a.agent not in self.ids:
             raise ProtocolViolation(f"action from agent {a.agent}, not in the team")
+        if a.agent in self.failed:
+            raise ProtocolViolation(f"action of agent {a.agent}, declared failed in step "
+                                    f"{self.failed[a.agent]}")
         if a.t < self.world.t and self._answered.get(a.agent) == acted:
             return  # a re-sent answer that arrived after the step was done
         if self.ended is not None or a.t != self.world.t:
@@ -72,28 +114,30 @@ class WorldRuntime:
 
     @property
     def step_complete(self) -> bool:
-        return len(self._acted) == len(self.ids)
+        return self.ended is None and len(self._acted) == len(self.live)
 
     def advance(self) -> list[Tick] | RunEnd:
         """All actions of the step are in: apply them, skip what can be skipped, say what next."""
-        acted = [self._acted[i] for i in self.ids]
+        live = self.live
+        acted = [self._acted[i] for i in live]
         self._acted = {}
         last = self.world.t
         peers = tuple(x.action.agent for x in acted if x.sent > 0)
         self.messages += sum(x.sent for x in acted)
         self.world.apply([x.action for x in acted])
         self.round_trips += 1
-        if self.skipping and not peers:
-            self._skip([x.plan for x in acted])
+        news = last in self.failed.values()   # a failure notice: the agents must hear it
+        if self.skipping and not peers and not news and acted:
+            self._skip(live, [x.plan for x in acted])
         return self._next(last, peers)
 
-    def _skip(self, plans: list[tuple[PlanStep, ...]]) -> None:
+    def _skip(self, live: tuple[int, ...], plans: list[tuple[PlanStep, ...]]) -> None:
         for k in range(min(len(p) for p in plans)):
             if self.world.done or self.world.t >= self.limit:
                 return
             t = self.world.t
             actions = []
-            for agent, plan in zip(self.ids, plans):
+            for agent, plan in zip(live, plans):
                 step = plan[k]
                 if not _expected(self.world.observe(agent), step):
                     return
@@ -103,10 +147,11 @@ class WorldRuntime:
 
     def _next(self, last: int, peers: tuple[int, ...]) -> list[Tick] | RunEnd:
         w = self.world
-        if w.done or w.t >= self.limit:
-            self.ended = RunEnd(w.t, last, w.done, peers, self.run)
+        failed = self._failed()
+        if w.done or w.t >= self.limit or not self.live:
+            self.ended = RunEnd(w.t, last, w.done, peers, self.run, failed)
             return self.ended
-        return [Tick(w.t, last, w.observe(i), peers, self.run) for i in self.ids]
+        return [Tick(w.t, last, w.observe(i), peers, self.run, failed) for i in self.live]
 
     # ------------------------------------------------------------------ result
 
@@ -125,11 +170,16 @@ class WorldRuntime:
 
     @property
     def missing_reports(self) -> tuple[int, ...]:
-        return tuple(i for i in self.ids if i not in self._reports)
+        return tuple(i for i in self.live if i not in self._reports and i not in self._gone)
 
     def result(self) -> RunResult:
-        """The same record as ``ost_ros.simulator.finish_result``, from the agents' reports."""
-        reports = [self._reports[i] for i in self.ids]
+        """The same record as ``ost_ros.simulator.finish_result``, from the agents' reports
+        (the survivors': a failed agent reports nothing)."""
+        reports = [self._reports[i] for i in self.live if i in self._reports]
+        if self.aborted or not reports:   # ended early: the world's truth is all there is
+            result = self.world.result(protocol=self.protocol, messages=self.messages)
+            result.error = self.aborted or "every agent failed"
+            return result
         first = reports[0]
         agreement = all(r.view == first.view for r in reports)
         found: dict[int, int] = {}
@@ -143,7 +193,7 @@ class WorldRuntime:
                                    coordinations=first.coordinations, messages=self.messages,
                                    agreement=agreement, warnings=warnings, found=dict(sorted(found.items())),
                                    schedule=schedule)
-        if not result.completed:
+        if not result.completed and result.error is None:
             result.error = f"not finished after {self.world.t} steps (deadlock or step limit)"
         return result
 

@@ -8,7 +8,10 @@ Parameters: ``scenario`` (YAML), ``agents`` (team size override, 0 = the file's)
 /ost/markers every k ticks; 0 = never), ``exit_when_done`` (leave once the agents are gone),
 ``checkpoint_file`` (the truth is written there before every step is published; '' = none) and
 ``resume`` (start from that checkpoint: a restarted world node continues the run — it publishes
-the step it was at again, and agents that had already answered answer again).
+the step it was at again, and agents that had already answered answer again) and
+``failure_timeout`` (s, the liveliness lease the world requests of every agent; an agent whose
+liveliness is lost and does not come back — and that sends nothing — for another such time is
+declared failed in the current step and the survivors re-coordinate; 0 = off).
 
 Publishes /clock (sim time: step t = t seconds), /ost/markers, each agent's tick, /ost/run_end and
 the result on /ost/result (transient local). Invalid or out-of-turn messages are dropped with a
@@ -27,6 +30,7 @@ from pathlib import Path
 
 import rclpy
 from builtin_interfaces.msg import Time
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
@@ -51,14 +55,16 @@ class WorldNode(Node):
         super().__init__(tp.WORLD_NODE, namespace=tp.NAMESPACE)
         for name, default in (("scenario", ""), ("agents", 0), ("max_steps", 0), ("result_file", ""),
                               ("event_skipping", True), ("marker_every", 1), ("exit_when_done", True),
-                              ("checkpoint_file", ""), ("resume", False)):
+                              ("checkpoint_file", ""), ("resume", False),
+                              ("failure_timeout", tp.FAILURE_TIMEOUT_S)):
             self.declare_parameter(name, default)
         p = {n: self.get_parameter(n).value for n in ("scenario", "agents", "max_steps", "result_file",
                                                        "event_skipping", "marker_every",
-                                                       "exit_when_done", "checkpoint_file", "resume")}
+                                                       "exit_when_done", "checkpoint_file", "resume",
+                                                       "failure_timeout")}
         if not p["scenario"]:
             raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
-        for name in ("agents", "max_steps", "marker_every"):
+        for name in ("agents", "max_steps", "marker_every", "failure_timeout"):
             if p[name] < 0:
                 raise ParameterError(f"{name}: {p[name]} must not be negative")
         try:
@@ -85,6 +91,7 @@ class WorldNode(Node):
         self.t_start = 0.0
         self.last_progress = self.stall_since = time.monotonic()
         self.last_sent: list[String] = []      # what the current step published, for resend()
+        self.last_agents: list[int] = []       # ... to whom (the survivors)
         self.checkpoint_file = p["checkpoint_file"]
         self.resumed = False
         if p["resume"]:
@@ -100,6 +107,17 @@ class WorldNode(Node):
         self.sub_ready = self.create_subscription(String, tp.READY, self.on_ready, tp.LATCHED_ALL_QOS)
         self.sub_report = self.create_subscription(String, tp.REPORTS, self.on_report,
                                                    tp.LATCHED_ALL_QOS)
+        # One liveliness reader per robot: a killed agent process is reported within the lease.
+        self.sub_alive = {}
+        self.alive_seen: set[int] = set()   # agents whose liveliness the world has seen
+        self.suspects: dict[int, float] = {}  # liveliness lost since (monotonic s), not yet failed
+        self.failure_timeout = p["failure_timeout"]
+        if p["failure_timeout"] > 0:
+            for i in self.ids:
+                events = SubscriptionEventCallbacks(liveliness=lambda info, i=i: self.on_liveliness(i, info))
+                self.sub_alive[i] = self.create_subscription(
+                    String, tp.alive_topic(i), lambda _msg: None, tp.alive_qos(p["failure_timeout"]),
+                    event_callbacks=events)
         self.timer = self.create_timer(0.1, self.on_timer)
         self.publish_state(self.rt.world.t)
         if self.resumed:
@@ -115,7 +133,7 @@ class WorldNode(Node):
         if not self.checkpoint_file:
             return
         state = {"fingerprint": self.fingerprint, "rt": self.rt, "ticks_sent": self.ticks_sent,
-                 "last_sent": [m.data for m in self.last_sent]}
+                 "last_sent": [m.data for m in self.last_sent], "last_agents": self.last_agents}
         tmp = f"{self.checkpoint_file}.tmp"
         try:
             with open(tmp, "wb") as f:
@@ -142,6 +160,7 @@ class WorldNode(Node):
         self.rt = state["rt"]
         self.ticks_sent = state["ticks_sent"]
         self.last_sent = [String(data=d) for d in state["last_sent"]]
+        self.last_agents = list(state.get("last_agents", self.rt.live))
         self.resumed = True
 
     # ------------------------------------------------------------------ start
@@ -162,8 +181,9 @@ class WorldNode(Node):
     def try_start(self) -> None:
         if self.started or (len(self.ready) < len(self.ids) and not self.resumed):
             return
-        if any(p.get_subscription_count() < 1 for p in self.pub_tick.values()) \
-                or self.sub_acted.get_publisher_count() < len(self.ids):
+        if any(self.pub_tick[i].get_subscription_count() < 1 for i in self.rt.live) \
+                or self.sub_acted.get_publisher_count() < len(self.rt.live) \
+                or (self.sub_alive and not self.alive_seen >= set(self.rt.live)):
             return  # the timer tries again
         if self.resumed:
             # The agents are mid-run: publish the checkpointed step again (resend does it).
@@ -176,6 +196,7 @@ class WorldNode(Node):
         protocols = {r.protocol for r in self.ready.values()}
         if len(protocols) > 1:
             self.throttle.warn(tp.READY, "agents", f"mixed protocols {sorted(protocols)}")
+        self.rt.protocol = min(protocols)   # what a failure can be recovered by
         self.started = True
         self.t_start = time.monotonic()
         self.get_logger().info(f"all {len(self.ids)} agents ready; step 0")
@@ -188,15 +209,20 @@ class WorldNode(Node):
             return
         if self.result_at is not None:
             # Leave once every agent is gone (it has read the result), or after a while.
-            gone = self.sub_acted.get_publisher_count() == 0
+            # (a failed agent's endpoint stays in the graph until its participant lease ends)
+            gone = self.sub_acted.get_publisher_count() <= len(self.rt.failed)
             if self.exit_when_done and (gone or now - self.result_at > LINGER_S):
                 self.done = True
+            return
+        if self.suspects:
+            self.check_suspects(now)
+        if self.result_at is not None:
             return
         if now - self.last_progress > tp.RESEND_S:
             self.resend()
         if self.rt.ended is None and now - self.stall_since > STALL_S:
             # Say who the barrier waits for: a silent stall is the worst failure to debug.
-            missing = [i for i in self.ids if i not in self.rt.acted_agents()]
+            missing = [i for i in self.rt.live if i not in self.rt.acted_agents()]
             self.throttle.note(("stall", "world"),
                                f"step {self.rt.world.t} stalled for {STALL_S:g} s: no action yet "
                                f"from agents {missing} (ticks re-sent every {tp.RESEND_S:g} s)")
@@ -216,6 +242,7 @@ class WorldNode(Node):
                                    "collecting reports")
             return
         self.last_sent = [tp.to_string(tick) for tick in nxt]
+        self.last_agents = [tick.observation.agent for tick in nxt]
         self.ticks_sent += 1
         self.save_checkpoint()    # before publishing: a published step is always recoverable
         for tick, msg in zip(nxt, self.last_sent):
@@ -230,8 +257,8 @@ class WorldNode(Node):
                 self.pub_end.publish(self.last_sent[0])
             return
         acted = set() if all_agents else set(self.rt.acted_agents())
-        for agent, msg in zip(self.ids, self.last_sent):
-            if agent not in acted:
+        for agent, msg in zip(self.last_agents, self.last_sent):
+            if agent not in acted and agent in self.rt.live:
                 self.pub_tick[agent].publish(msg)
 
     def publish_state(self, t: int) -> None:
@@ -244,9 +271,14 @@ class WorldNode(Node):
         a = tp.decode_or_warn(msg, tp.ACTED, Acted, self.throttle)
         if a is None:
             return
+        if a.run != self.rt.run:   # another run's (a stray): say so whether or not we started
+            self.throttle.warn(tp.ACTED, f"agent {a.action.agent}",
+                               f"action of run {a.run!r}, this is run {self.rt.run!r}")
+            return
         if not self.started:
             self.throttle.warn(tp.ACTED, f"agent {a.action.agent}", "action before the run started")
             return
+        self.heard_from(a.action.agent)
         try:
             self.rt.accept_acted(a)
         except ProtocolViolation as exc:
@@ -255,12 +287,62 @@ class WorldNode(Node):
         if self.rt.step_complete:
             self.send(self.rt.advance())
 
+    # ------------------------------------------------------------------ failures
+
+    def on_liveliness(self, agent: int, info) -> None:
+        """An agent's liveliness changed. Lost after the start makes it a suspect; it fails if
+        the loss lasts another ``failure_timeout`` with nothing heard from it (a lossy network
+        can drop the assertions of a live agent for a whole lease)."""
+        if info.alive_count > 0:
+            self.alive_seen.add(agent)
+            if self.suspects.pop(agent, None) is not None:
+                self.get_logger().info(f"agent {agent}: liveliness back; not failed")
+            self.try_start()
+            return
+        if info.not_alive_count_change <= 0 or not self.started or self.result_at is not None:
+            return
+        if agent not in self.rt.failed:
+            self.suspects.setdefault(agent, time.monotonic())
+
+    def heard_from(self, agent: int) -> None:
+        """A message from a suspect: it is alive after all."""
+        if self.suspects.pop(agent, None) is not None:
+            self.get_logger().info(f"agent {agent}: heard from it after its liveliness was lost; not failed")
+
+    def check_suspects(self, now: float) -> None:
+        for agent, since in list(self.suspects.items()):
+            if now - since >= self.failure_timeout:
+                del self.suspects[agent]
+                self.declare_failed(agent)
+
+    def declare_failed(self, agent: int) -> None:
+        if self.result_at is not None or agent in self.rt.failed:
+            return
+        if self.rt.ended is not None:
+            self.rt.fail(agent)
+            self.get_logger().warning(f"agent {agent} lost after the run ended; not waiting for "
+                                      "its report")
+            if not self.rt.missing_reports:
+                self.finish()
+            return
+        step = self.rt.world.t
+        nxt = self.rt.fail(agent)
+        self.get_logger().warning(
+            f"agent {agent} lost (no liveliness for 2 x {self.failure_timeout:g} s): failed in step "
+            f"{step}; {len(self.rt.live)} survivors" + (f"; {self.rt.aborted}" if self.rt.aborted
+                                                         else ", re-coordinating"))
+        if nxt is not None:
+            self.send(nxt)
+        if self.rt.aborted:
+            self.finish()
+
     # ------------------------------------------------------------------ end
 
     def on_report(self, msg: String) -> None:
         r = tp.decode_or_warn(msg, tp.REPORTS, AgentReport, self.throttle)
         if r is None:
             return
+        self.heard_from(r.agent)
         try:
             self.rt.accept_report(r)
         except ProtocolViolation as exc:
@@ -318,6 +400,7 @@ def main(args=None) -> int:
         else:
             raise
     finally:
+        tp.guard_exit()   # never hang in teardown (see transport.guard_exit)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

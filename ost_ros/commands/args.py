@@ -31,6 +31,18 @@ def period_list(text: str) -> list[int]:
     return values
 
 
+def failure(text: str) -> tuple[int, int]:
+    """argparse type: AGENT:STEP (a robot failing in that step)."""
+    agent, sep, step = text.partition(":")
+    try:
+        a, t = int(agent), int(step)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected AGENT:STEP, got {text!r}") from None
+    if not sep or a < 0 or t < 0:
+        raise argparse.ArgumentTypeError(f"expected AGENT:STEP with non-negative integers, got {text!r}")
+    return a, t
+
+
 def fraction(text: str) -> float:
     """argparse type: a number in (0, 1]."""
     try:

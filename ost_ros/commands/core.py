@@ -9,14 +9,15 @@ from pathlib import Path
 from typing import Any
 
 from ost_ros import validate as v
-from ost_ros.commands.args import fraction, leaf, load_scenario_arg, natural, period_list, positive
+from ost_ros.commands.args import (failure, fraction, leaf, load_scenario_arg, natural, period_list,
+                                   positive)
 from ost_ros.errors import UsageError
 from ost_ros.coordination import CoordinationPolicy, coordinate
 from ost_ros.model import DEFAULT_HEIGHT, DEFAULT_NMAX, DEFAULT_WIDTH, Grid, ObjectSpec
 from ost_ros.scenario import ScenarioError, build_scenario, dump_scenario, generate_scenario
 from ost_ros.bounds import lower_bound
 from ost_ros.ncp import NegotiationSettings
-from ost_ros.simulator import ENGINES, PROTOCOLS, choose_engine, simulate
+from ost_ros.simulator import ENGINES, PROTOCOLS, check_failures, choose_engine, simulate
 from ost_ros.validate import FieldError
 
 OBJECT_KEYS = ("id", "location", "destination", "required")
@@ -59,6 +60,8 @@ def register(sub) -> None:
     p.add_argument("--agents", type=positive,
                    help="replace the scenario's team by N agents (default partition and bases)")
     p.add_argument("--max-steps", type=positive, help="stop after this many steps")
+    p.add_argument("--fail", type=failure, action="append", default=[], metavar="AGENT:STEP",
+                   help="robot AGENT fails in step STEP (repeatable; ccp): survivors re-coordinate")
     p.add_argument("--engine", choices=("auto",) + ENGINES, default="auto",
                    help="step: the reference, every agent every step; event: jumps from decision "
                         "to decision, same result (default auto: event for big runs, step when "
@@ -146,9 +149,21 @@ def cmd_sim(args: argparse.Namespace) -> int:
         bar.close()
         bar = None
         hooks = [h for h in hooks if h is not progress]
+    failures = dict(args.fail)
+    if len(failures) != len(args.fail):
+        raise UsageError("--fail: an agent can fail only once")
+    if failures:
+        if args.engine == "event":
+            raise UsageError("--fail: robot failures run on the step engine (--engine step)")
+        engine = "step"
+        try:
+            check_failures(scenario, args.protocol, failures)
+        except ValueError as exc:
+            raise UsageError(f"--fail: {exc}") from None
     try:
         result = simulate(scenario, args.protocol, policy, max_steps=args.max_steps,
-                          on_step=on_step if hooks else None, engine=engine, ncp=ncp)
+                          on_step=on_step if hooks else None, engine=engine, ncp=ncp,
+                          failures=failures)
     finally:
         if bar is not None:
             bar.close()

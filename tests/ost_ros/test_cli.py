@@ -153,3 +153,36 @@ def test_sim_plot(scenario, tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
     bad = ost("sim", scenario, "--plot", tmp_path / "no" / "such" / "dir.png")
     assert bad.returncode == 2 and "cannot write" in bad.stderr
+
+
+def test_sim_with_a_failing_robot(scenario):
+    r = ost("sim", scenario, "--json", "--agents", 5, "--fail", "1:30")   # 4 survive: nmax
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert d["failures"] == [{"agent": 1, "step": 30}] and d["completed"]
+    assert d["agents"][1]["cost"] is None
+    text = ost("sim", scenario, "--fail", "1:30").stdout   # 3 survive: some objects stay
+    assert "failed          agent 1 in step 30" in text and "cannot be delivered" in text
+
+
+@pytest.mark.parametrize("args, text", [
+    (["--fail", "9:3"], "no such agent"),
+    (["--fail", "1:x"], "expected AGENT:STEP"),
+    (["--fail", "1:3", "--fail", "1:5"], "only once"),
+    (["--fail", "1:3", "--protocol", "hcp"], "hcp does not recover"),
+    (["--fail", "1:3", "--engine", "event"], "step engine"),
+])
+def test_sim_bad_failures_are_one_line(scenario, args, text):
+    r = ost("sim", scenario, *args)
+    assert r.returncode == 2 and text in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_faults_report_quick(tmp_path):
+    out = tmp_path / "faults.md"
+    r = ost("faults", "report", "--quick", "--out", out)
+    assert r.returncode == 0, r.stderr
+    assert "| scenario | fault | delivered / total |" in r.stdout
+    assert "20/20" in r.stdout and "too few survivors" in r.stdout
+    assert out.read_text().startswith("# Fault report")
+    rows = json.loads(ost("faults", "report", "--quick", "--json").stdout)
+    assert rows[0]["fault"] == "none" and rows[0]["overhead vs fault-free"] == "+0.0%"

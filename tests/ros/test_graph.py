@@ -17,6 +17,7 @@ TOPICS = {
     "/ost/ready": "std_msgs/msg/String", "/ost/run_end": "std_msgs/msg/String",
     "/ost/reports": "std_msgs/msg/String", "/ost/result": "std_msgs/msg/String",
     "/ost/agent_0/tick": "std_msgs/msg/String", "/ost/agent_1/tick": "std_msgs/msg/String",
+    "/ost/agent_0/alive": "std_msgs/msg/String", "/ost/agent_1/alive": "std_msgs/msg/String",
 }
 # Malformed on purpose: not JSON; wrong field type (with a sender to name); wrong version.
 BAD = ['{not json', '{"type": "acted", "sender": 1, "t": "x", "version": 1}',
@@ -73,8 +74,8 @@ def test_graph_and_malformed_messages(tmp_path, procs, domain):
     for name, kind in TOPICS.items():
         assert graph.get(name) == f"[{kind}]", (name, listed.stdout)
 
-    strings = [t for t, k in TOPICS.items()   # agent_1's tick has no reader yet
-               if k == "std_msgs/msg/String" and t != "/ost/agent_1/tick"]
+    strings = [t for t, k in TOPICS.items()   # agent_1's tick has no reader yet; alive: no data
+               if k == "std_msgs/msg/String" and t != "/ost/agent_1/tick" and not t.endswith("/alive")]
     inj = subprocess.run([sys.executable, "-c", INJECT, ",".join(strings), *BAD],
                          env=ros_env(domain), capture_output=True, text=True, timeout=60)
     assert inj.returncode == 0, inj.stderr

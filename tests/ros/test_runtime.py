@@ -19,18 +19,25 @@ def wire(msg):
     return codec.decode(codec.encode(msg))
 
 
-def run(scenario, protocol, policy, lookahead, skipping):
+def run(scenario, protocol, policy, lookahead, skipping, kill=None):
+    """``kill`` = {agent: step}: the agent's process is gone from the first tick at or after
+    that step (with skipping, the world may be past it: then it fails later, as over DDS)."""
     ids = tuple(a.id for a in scenario.agents)
     rts = {a.id: AgentRuntime(a, ids, policy.name, lookahead)
            for a in make_agents(scenario, protocol, policy)}
-    world = WorldRuntime(scenario, skipping=skipping)
+    world = WorldRuntime(scenario, skipping=skipping, protocol=protocol)
     nxt = world.start()
+    kill = dict(kill or {})
     while True:
+        for a, t in list(kill.items()):
+            if not isinstance(nxt, RunEnd) and world.world.t >= t:
+                del rts[a], kill[a]
+                assert world.fail(a) is None   # the survivors still have to act
         for r in rts.values():
             if isinstance(nxt, RunEnd):
                 r.accept_end(wire(nxt))
             else:
-                r.accept_tick(wire(nxt[ids.index(r.me)]))
+                r.accept_tick(wire(next(k for k in nxt if k.observation.agent == r.me)))
         out = [m for r in rts.values() for m in r.progress()]
         for b in (m for m in out if isinstance(m, StepMessages)):
             for r in rts.values():
@@ -205,3 +212,27 @@ def test_messages_of_another_run_are_dropped():
     world.accept_acted(acted)
     with pytest.raises(ProtocolViolation, match="action of run 'x'"):
         world.accept_acted(dataclasses.replace(acted, run="x"))
+
+
+@pytest.mark.parametrize("skipping", [False, True])
+@pytest.mark.parametrize("kill", [{1: 0}, {2: 40}, {0: 25, 3: 60}, {5: 120}])
+def test_failed_agents_equal_simulate_with_the_same_failures(kill, skipping):
+    scenario = generate_scenario(6, 10, 3, Grid(36, 18), 3)
+    policy = CoordinationPolicy(ci=2)
+    got, world = run(scenario, "ccp", policy, 64 if skipping else 0, skipping, kill)
+    failures = {f["agent"]: f["step"] for f in got.failures}
+    assert set(failures) == set(kill) and all(failures[a] >= kill[a] for a in kill)
+    if not skipping:
+        assert failures == kill
+    assert got.to_dict() == simulate(scenario, "ccp", policy, failures=failures).to_dict()
+    assert got.completed and got.agreement
+
+
+def test_a_failure_under_hcp_ends_the_run_with_the_reason():
+    scenario = generate_scenario(4, 6, 1, Grid(30, 12), 3)
+    world = WorldRuntime(scenario, protocol="hcp")
+    world.start()
+    end = world.fail(2)
+    assert isinstance(end, RunEnd) and not end.completed and end.failed == ((2, 0),)
+    r = world.result()
+    assert not r.completed and "does not recover" in r.error

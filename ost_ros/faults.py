@@ -1,0 +1,104 @@
+"""Fault study (``ost faults report``): robot failures run in-process against the fault-free
+run of the same scenario — objects delivered, makespan, overhead.
+
+A fault is a set of robots failing at a share of the fault-free makespan (the robots are picked
+by a seeded draw). The DDS rows (``--dds``: a real SIGKILL, a lossy network) are added by the
+command, which owns the processes; this module stays ROS-free.
+"""
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass
+
+from ost_ros.coordination import CoordinationPolicy
+from ost_ros.model import Grid, Scenario
+from ost_ros.result import RunResult
+from ost_ros.scenario import generate_scenario
+from ost_ros.simulator import simulate
+
+
+@dataclass(frozen=True)
+class FaultCase:
+    """``count`` robots fail at ``share`` of the fault-free makespan."""
+
+    count: int
+    share: float
+
+    def label(self, scenario: Scenario) -> str:
+        return f"{self.count} robot{'s fail' if self.count > 1 else ' fails'} at {self.share:.0%} of the run"
+
+    def failures(self, scenario: Scenario, makespan: int, seed: int) -> dict[int, int]:
+        ids = [a.id for a in scenario.agents]
+        dead = random.Random(seed * 7919 + self.count).sample(ids, min(self.count, len(ids) - 1))
+        return {a: int(self.share * makespan) for a in sorted(dead)}
+
+
+@dataclass
+class FaultRow:
+    scenario: str
+    fault: str
+    delivered: int
+    total: int
+    makespan: int | None
+    baseline: int | None
+    note: str = ""
+
+    @property
+    def overhead(self) -> float | None:
+        if self.makespan is None or not self.baseline:
+            return None
+        return self.makespan / self.baseline - 1.0
+
+    def cells(self) -> list[str]:
+        over = "—" if self.overhead is None else f"{self.overhead:+.1%}"
+        return [self.scenario, self.fault, f"{self.delivered}/{self.total}",
+                "—" if self.makespan is None else str(self.makespan), over, self.note]
+
+
+HEADER = ["scenario", "fault", "delivered / total", "makespan", "overhead vs fault-free", "note"]
+
+
+def study_scenarios(quick: bool = False) -> list[tuple[str, Scenario]]:
+    """The paper's area and object law; teams of 10 and 20 (seeded)."""
+    grid = Grid(100, 40) if quick else Grid(500, 200)
+    sizes = [(10, 20, 5)] if quick else [(10, 20, 5), (20, 50, 10)]
+    return [(f"N={n} M={m} {grid.width}×{grid.height} nmax={k}", generate_scenario(n, m, 1, grid, k))
+            for n, m, k in sizes]
+
+
+def cases_for(scenario: Scenario) -> list[FaultCase]:
+    n, nmax = scenario.n_agents, scenario.nmax
+    return [FaultCase(1, 0.25), FaultCase(1, 0.5), FaultCase(1, 0.75),
+            FaultCase(max(2, (n - nmax) // 2), 0.5), FaultCase(n - nmax, 0.5),
+            FaultCase(n - nmax + 1, 0.5)]
+
+
+def row_of(name: str, fault: str, result: RunResult, baseline: int | None, note: str = "") -> FaultRow:
+    delivered = sum(o.delivered is not None for o in result.objects)
+    if not note and not result.completed and result.error:
+        note = result.error
+    return FaultRow(name, fault, delivered, len(result.objects), result.makespan, baseline, note)
+
+
+def in_process_rows(quick: bool = False, seed: int = 1, progress=None) -> list[FaultRow]:
+    rows: list[FaultRow] = []
+    policy = CoordinationPolicy(ci=1)
+    for name, scenario in study_scenarios(quick):
+        base = simulate(scenario, "ccp", policy, engine="step")
+        rows.append(row_of(name, "none", base, base.makespan))
+        for case in cases_for(scenario):
+            failures = case.failures(scenario, base.makespan, seed)
+            r = simulate(scenario, "ccp", policy, failures=failures)
+            note = f"agents {sorted(failures)} at step {next(iter(failures.values()))}"
+            if not r.completed and r.error:
+                note += f"; {r.error.split(': ', 1)[0]} (too few survivors)"
+            rows.append(row_of(name, case.label(scenario), r, base.makespan, note))
+            if progress is not None:
+                progress()
+    return rows
+
+
+def markdown(rows: list[FaultRow]) -> str:
+    lines = ["| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
+    lines += ["| " + " | ".join(r.cells()) + " |" for r in rows]
+    return "\n".join(lines)

@@ -1,0 +1,23 @@
+"""The agent node's name comes from ``agent_id`` in its ROS arguments (``-p`` or a params file)."""
+from agent_node.agent_node import agent_id_from_args
+
+
+def test_agent_id_from_p_and_params_file(tmp_path):
+    params = tmp_path / "p.yaml"
+    params.write_text("/**:\n  ros__parameters:\n    agent_id: 7\n    ci: 1\n")
+    assert agent_id_from_args(["agent_node", "--ros-args", "-p", "agent_id:=3"]) == 3
+    assert agent_id_from_args(["x", "--ros-args", "--params-file", str(params)]) == 7
+    # the last assignment wins, as in rcl
+    assert agent_id_from_args(["x", "--ros-args", "--params-file", str(params), "-p", "agent_id:=2"]) == 2
+    assert agent_id_from_args(["x", "--ros-args", "-p", "agent_id:=2", "--params-file", str(params)]) == 7
+
+
+def test_agent_id_absent_or_bad_gives_none(tmp_path):
+    assert agent_id_from_args(["agent_node"]) is None
+    assert agent_id_from_args(["x", "-p", "agent_id:=3"]) is None          # not a ROS argument
+    assert agent_id_from_args(["x", "--ros-args", "-p", "agent_id:=abc"]) is None
+    assert agent_id_from_args(["x", "--ros-args", "-p", "agent_id:=-1"]) is None
+    assert agent_id_from_args(["x", "--ros-args", "--params-file", str(tmp_path / "none.yaml")]) is None
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(": : :\n")
+    assert agent_id_from_args(["x", "--ros-args", "--params-file", str(bad)]) is None

@@ -1,0 +1,104 @@
+"""Robot failures over DDS: an agent process killed with SIGKILL mid-run (by itself at a given
+step, or from outside at an arbitrary moment) is detected by its lost liveliness, declared failed
+in the step the world was at, and the survivors re-coordinate — the result is exactly the
+in-process run with that failure (``ost sim --fail AGENT:STEP``). Too few survivors, or a
+protocol that does not recover (hcp), end the run with a result that says why."""
+import os
+import pickle
+import signal
+import subprocess
+import time
+
+from dds_helpers import BIN, UP, ost_up, result_json
+from ost_ros.bounds import lower_bound
+from ost_ros.coordination import CoordinationPolicy
+from ost_ros.model import Grid
+from ost_ros.scenario import dump_scenario, generate_scenario
+from ost_ros.simulator import simulate
+
+
+def scenario_file(tmp_path, n=4, m=8, seed=1, grid=Grid(30, 12), nmax=3):
+    s = generate_scenario(n, m, seed, grid, nmax)
+    path = tmp_path / "s.yaml"
+    path.write_text(dump_scenario(s))
+    return s, path
+
+
+def in_process(scenario, got, protocol="ccp"):
+    failures = {f["agent"]: f["step"] for f in got["failures"]}
+    r = simulate(scenario, protocol, CoordinationPolicy(ci=1), failures=failures)
+    r.lower_bound = lower_bound(scenario).value
+    return r.to_dict()
+
+
+def test_agent_killing_itself_at_a_step_equals_ost_sim_with_that_failure(tmp_path):
+    scenario, path = scenario_file(tmp_path)
+    run = ost_up("--scenario", str(path), "--json", "--kill-agent", "2:40",
+                 "--run-dir", str(tmp_path / "run"))
+    assert run.returncode == 0, run.stderr
+    got = result_json(run.stdout)
+    assert [f["agent"] for f in got["failures"]] == [2] and got["failures"][0]["step"] >= 40
+    assert got == in_process(scenario, got)
+    assert got["completed"] and got["agreement"]
+    assert "agent_2 (pid" in run.stderr and "died mid-run" in run.stderr
+    world = (tmp_path / "run" / "world.log").read_text()
+    assert "agent 2 lost (no liveliness for 2 x 1 s)" in world
+    assert "Traceback" not in world
+
+
+def checkpoint_step(path) -> int:
+    try:
+        with open(path, "rb") as f:
+            return pickle.load(f)["rt"].world.t
+    except (OSError, EOFError, pickle.UnpicklingError, KeyError):
+        return -1
+
+
+def test_agent_killed_from_outside_at_any_moment(tmp_path):
+    scenario, path = scenario_file(tmp_path, n=6, m=10, seed=3, grid=Grid(36, 18))
+    run_dir = tmp_path / "run"
+    env = dict(os.environ, OST_VENV=str(BIN.parent))
+    env.pop("ROS_DOMAIN_ID", None)
+    # skipping off and a short lease: the kill lands mid-run, wherever the lockstep is
+    up = subprocess.Popen(["bash", str(UP), "--scenario", str(path), "--json", "--no-skip",
+                           "--failure-timeout", "1", "--run-dir", str(run_dir)],
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                          start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while checkpoint_step(run_dir / "world.checkpoint") < 30:
+            assert time.monotonic() < deadline and up.poll() is None, up.stderr.read()[-2000:]
+            time.sleep(0.02)
+        os.kill(int((run_dir / "agent_4.pid").read_text()), signal.SIGKILL)
+        out, err = up.communicate(timeout=180)
+    finally:
+        if up.poll() is None:
+            os.killpg(up.pid, signal.SIGTERM)
+            up.wait(15)
+    assert up.returncode == 0, err
+    got = result_json(out)
+    assert [f["agent"] for f in got["failures"]] == [4] and got["failures"][0]["step"] >= 30
+    assert got == in_process(scenario, got)
+    assert got["completed"]
+    leftovers = subprocess.run(["pgrep", "-f", str(run_dir)], capture_output=True, text=True).stdout
+    assert not leftovers.strip()
+
+
+def test_too_few_survivors_end_with_what_could_not_be_done(tmp_path):
+    scenario, path = scenario_file(tmp_path, nmax=4)
+    run = ost_up("--scenario", str(path), "--json", "--kill-agent", "1:0",
+                 "--run-dir", str(tmp_path / "run"))
+    got = result_json(run.stdout)
+    assert got == in_process(scenario, got)
+    assert not got["completed"] and "cannot be delivered" in got["error"]
+    assert "need up to 4 robots and 3 survive" in got["error"]
+
+
+def test_hcp_run_with_a_failed_agent_ends_with_the_reason(tmp_path):
+    scenario, path = scenario_file(tmp_path)
+    run = ost_up("--scenario", str(path), "--json", "--protocol", "hcp", "--kill-agent", "3:10",
+                 "--run-dir", str(tmp_path / "run"))
+    got = result_json(run.stdout)
+    assert not got["completed"]
+    assert "does not recover from failures" in got["error"]
+    assert got["failures"][0]["agent"] == 3

@@ -1,0 +1,67 @@
+"""Several hosts and lossy links (root: network namespaces on a bridge, bringup_scripts/
+sim_hosts.sh): the world and the agents on K = 3 simulated hosts with their own IPs give exactly
+the single-host run (= ``ost sim``) — with default multicast discovery, with multicast blocked
+and ROS_STATIC_PEERS or a Fast DDS discovery server instead, and with 20 % of every packet each
+host sends dropped (nftables ``numgen``)."""
+import os
+import shutil
+import subprocess
+
+import pytest
+
+from dds_helpers import REPO, ost_up, reference, result_json
+from ost_ros.coordination import CoordinationPolicy
+from ost_ros.model import Grid
+from ost_ros.scenario import dump_scenario, generate_scenario
+
+ROOT = os.geteuid() == 0
+NFT = shutil.which("nft") is not None
+pytestmark = pytest.mark.skipif(not ROOT, reason="simulated hosts need root (network namespaces)")
+
+
+def run_on_hosts(tmp_path, *args, protocol="ccp"):
+    scenario = generate_scenario(4, 8, 1, Grid(30, 12), 4)
+    path = tmp_path / "s.yaml"
+    path.write_text(dump_scenario(scenario))
+    expected = reference(scenario, protocol, CoordinationPolicy(ci=1))
+    run = ost_up("--scenario", str(path), "--json", "--protocol", protocol, "--hosts", "3", *args,
+                 "--run-dir", str(tmp_path / "run"), timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert "on 3 simulated hosts" in run.stderr
+    return result_json(run.stdout), expected, run.stderr
+
+
+def no_namespaces_left(stderr: str) -> bool:
+    name = "ost" + stderr.split("ROS_DOMAIN_ID=")[1].split(",")[0]
+    listed = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
+    return not any(line.split()[0].startswith(name + "_") for line in listed.splitlines() if line)
+
+
+def test_three_hosts_multicast_discovery(tmp_path):
+    got, expected, err = run_on_hosts(tmp_path)
+    assert got == expected
+    assert no_namespaces_left(err)
+
+
+@pytest.mark.skipif(not NFT, reason="nft (Debian package nftables) is needed to block multicast")
+@pytest.mark.parametrize("discovery", ["static", "server"])
+def test_multicast_blocked_static_peers_or_discovery_server(tmp_path, discovery):
+    got, expected, err = run_on_hosts(tmp_path, "--discovery", discovery)
+    assert got == expected
+    assert f"discovery {discovery}" in err
+
+
+@pytest.mark.skipif(not NFT, reason="nft (Debian package nftables) is needed to drop packets")
+@pytest.mark.parametrize("protocol", ["ccp", "ncp"])
+def test_twenty_percent_loss_on_every_host(tmp_path, protocol):
+    got, expected, err = run_on_hosts(tmp_path, "--loss", "20", protocol=protocol)
+    assert got == expected
+    assert "loss 20 %" in err
+
+
+def test_sim_hosts_bad_arguments_are_one_line():
+    script = REPO / "bringup_scripts" / "sim_hosts.sh"
+    for args, text in [(["up", "x"], "up needs K"), (["up", "bad-name!", "2"], "NAME"),
+                       (["up", "x", "0"], "K: 1..250"), (["sideways", "x"], "unknown command")]:
+        r = subprocess.run(["bash", str(script), *args], capture_output=True, text=True)
+        assert r.returncode == 2 and text in r.stderr and len(r.stderr.strip().splitlines()) == 1
