@@ -4,7 +4,7 @@
 #   bringup_scripts/ost_up.sh --agents N (--objects M --seed S | --scenario FILE)
 #       [--protocol ccp|hcp|ncp] [--ci K | --interval T] [--width W --height H --nmax X]
 #       [--mute-negotiation AGENT:STEP] [--respawn-world K]
-#       [--kill-agent AGENT:STEP]... [--failure-timeout SEC]
+#       [--kill-agent AGENT:STEP]... [--failure-timeout SEC] [--partition equal|negotiated]
 #       [--hosts K [--loss PCT] [--discovery multicast|static|server]]
 #       [--domain-id D] [--run-dir DIR] [--json] [--no-skip] [--max-steps S]
 #       [--timeout SEC] [--background]
@@ -23,7 +23,9 @@
 # An agent process that dies mid-run is not the end of it: the world declares the robot failed
 # once it has shown no liveliness for twice --failure-timeout (default 1 s) and the survivors
 # re-coordinate (ccp; hcp and ncp runs end with the reason). --kill-agent AGENT:STEP makes that
-# agent SIGKILL itself on the tick of that step (fault injection; repeatable).
+# agent SIGKILL itself on the tick of that step (fault injection; repeatable). --partition
+# negotiated: the robots' search areas are negotiated first (`ost negotiate partition`, by speed
+# and private forbidden zones); every process then loads that scenario.
 set -uo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -35,7 +37,7 @@ die() { echo "$me: error: $*" >&2; exit 2; }
 say() { echo "$me: $*" >&2; }
 
 agents="" objects="" seed="" scenario="" protocol="ccp" ci="1" interval="" width="" height="" nmax=""
-mute="" respawn=0 hosts=0 loss=0 discovery="multicast" kills=() failure_timeout=1.0
+mute="" respawn=0 hosts=0 loss=0 discovery="multicast" kills=() failure_timeout=1.0 partition=equal
 domain="${ROS_DOMAIN_ID:-}" run_dir="" json=0 skip=true max_steps=0 timeout=0 background=0
 need() { [ $# -ge 2 ] && [ -n "$2" ] || die "$1 needs a value"; }
 int() { [[ "$2" =~ ^[0-9]+$ ]] || die "$1: expected a non-negative integer, got '$2'"; }
@@ -58,6 +60,8 @@ while [ $# -gt 0 ]; do
     --mute-negotiation) need "$@"; [[ "$2" =~ ^[0-9]+:[0-9]+$ ]] \
         || die "--mute-negotiation: expected AGENT:STEP, got '$2'"; mute="$2"; shift 2 ;;
     --respawn-world) need "$@"; int "$1" "$2"; respawn="$2"; shift 2 ;;
+    --partition) need "$@"; case "$2" in equal|negotiated) ;; *)
+        die "--partition: '$2' is not equal or negotiated" ;; esac; partition="$2"; shift 2 ;;
     --kill-agent) need "$@"; [[ "$2" =~ ^[0-9]+:[0-9]+$ ]] \
         || die "--kill-agent: expected AGENT:STEP, got '$2'"; kills+=("$2"); shift 2 ;;
     --failure-timeout) need "$@"; [[ "$2" =~ ^[0-9]+(\.[0-9]+)?$ ]] \
@@ -69,7 +73,7 @@ while [ $# -gt 0 ]; do
     --json) json=1; shift ;;
     --no-skip) skip=false; shift ;;
     --background) background=1; shift ;;
-    -h|--help) sed -n '2,29p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,31p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) die "unknown argument '$1' (see --help)" ;;
   esac
 done
@@ -117,7 +121,7 @@ if [ "$background" = 1 ]; then
   [ -n "$mute" ] && fwd+=(--mute-negotiation "$mute")
   [ "$respawn" -gt 0 ] && fwd+=(--respawn-world "$respawn")
   for kv in "${kills[@]}"; do fwd+=(--kill-agent "$kv"); done
-  fwd+=(--failure-timeout "$failure_timeout")
+  fwd+=(--failure-timeout "$failure_timeout" --partition "$partition")
   [ "$hosts" -gt 0 ] && fwd+=(--hosts "$hosts" --loss "$loss" --discovery "$discovery")
   [ -n "$domain" ] && fwd+=(--domain-id "$domain")
   [ "$skip" = false ] && fwd+=(--no-skip)
@@ -184,6 +188,14 @@ if [ -z "$scenario" ]; then
 else
   scenario="$(cd "$(dirname "$scenario")" && pwd)/$(basename "$scenario")"
   team="${agents:-0}"
+fi
+if [ "$partition" = negotiated ]; then
+  [ "$protocol" = hcp ] && die "--partition negotiated: HCP owns objects by the equal partition; use ccp or ncp"
+  [ "$team" = 0 ] || die "--partition negotiated: --agents would replace the scenario's team; give a scenario with it"
+  "$bin/ost" negotiate partition --scenario "$scenario" -o "$run_dir/scenario_negotiated.yaml" \
+    > "$run_dir/partition.txt" || exit 2
+  scenario="$run_dir/scenario_negotiated.yaml"
+  say "search areas negotiated: $(tail -n 1 "$run_dir/partition.txt")"
 fi
 ids="$("$bin/python" - "$scenario" "$team" <<'EOF'
 import sys

@@ -54,7 +54,7 @@ class CcpAgent:
         self.position: Cell = self.base
         self.t = 0
         self.state = GlobalState.SEARCHING
-        self.search = SearchModule.for_area(team.areas[k], self.base)
+        self.search = SearchModule(team.search_path(k))
         self.comm = CcpComm(agent_id, team, policy or CoordinationPolicy())
         self.tasks: deque[Assignment | Sweep] = deque()   # own schedule, in scheduling order
         self.current: Assignment | None = None

@@ -24,7 +24,6 @@ from ost_msgs_py.messages import AgentLost, ObjectFound, SearchDone, Selection, 
 from ost_ros.coordination import Assignment, CoordinationPolicy, coordinate
 from ost_ros.model import Cell, ObjectSpec, arrival_np, group_period
 from ost_ros.recovery import Sweep, drop_cell, remaining_sweep
-from ost_ros.search import SearchModule
 from ost_ros.team import TeamInfo
 
 # Selections of this many most recent coordinations are kept for cross-checking peers.
@@ -195,7 +194,7 @@ class CcpComm:
         then the sweeps it took over."""
         if agent not in self.sweeps:
             k = self.team.index(agent)
-            path = tuple(SearchModule.for_area(self.team.areas[k], self.team.bases[k]).path)
+            path = tuple(self.team.search_path(k))
             self.sweeps[agent] = [Sweep(agent, path, 0, int(self.team.sweep_lengths()[k]))]
         return self.sweeps[agent]
 

@@ -26,22 +26,23 @@ from ost_ros.hcp import HcpState
 from ost_ros.model import Cell, Scenario, arrival, arrival_np, manhattan
 from ost_ros.ncp import NcpComm, NegotiationSettings
 from ost_ros.result import AgentRecord, ObjectRecord, RunResult
-from ost_ros.search import route, sweep_plan
+from ost_ros.search import agent_plan, route
 from ost_ros.team import TeamInfo
 from ost_ros.world import World
 
 
 def sweep_paths(scenario: Scenario) -> list[np.ndarray]:
     """Each agent's cell-by-cell search path ((L_j + 1) × 2): it stands on row t at time t."""
-    return list(_paths(scenario.subareas, tuple(a.base for a in scenario.agents)))
+    return list(_paths(scenario.subareas, tuple(a.base for a in scenario.agents),
+                       tuple(a.sweep for a in scenario.agents)))
 
 
 @lru_cache(maxsize=8)
-def _paths(areas: tuple, bases: tuple) -> tuple[np.ndarray, ...]:
+def _paths(areas: tuple, bases: tuple, sweeps: tuple) -> tuple[np.ndarray, ...]:
     # A study runs many object sets on one team: the sweeps are computed once per team.
     out = []
-    for area, base in zip(areas, bases):
-        path = np.array(route(sweep_plan(area, base)), dtype=np.int64).reshape(-1, 2)
+    for area, base, sweep in zip(areas, bases, sweeps):
+        path = np.array(route(agent_plan(area, base, sweep)), dtype=np.int64).reshape(-1, 2)
         path.flags.writeable = False
         out.append(path)
     return tuple(out)

@@ -75,12 +75,19 @@ ObjectSpec = ObjectInfo
 
 @dataclass(frozen=True)
 class AgentSpec:
-    """A robot of the team: its id, its base (where it starts and returns to) and its period
-    (it moves one cell every ``period`` steps; 1 = the paper's robots)."""
+    """A robot of the team: its id, its base (where it starts and returns to), its period (it
+    moves one cell every ``period`` steps; 1 = the paper's robots), and optionally its own sweep
+    and forbidden zones."""
 
     id: int
     base: Cell
     period: int = 1
+    # Its own sweep's waypoints when it does not sweep its subarea of the equal partition (a
+    # negotiated partition, ``ost_ros.negotiation.partition``); empty: its subarea's sweep.
+    sweep: tuple[Cell, ...] = ()
+    # Private no-search zones [x0, y0, x1, y1] (inclusive cells): a negotiated partition never
+    # gives the robot these cells to search. Its moves to objects are not re-routed around them.
+    forbidden: tuple[tuple[int, int, int, int], ...] = ()
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,10 @@ File format::
     grid: {width: 500, height: 200}
     partition: [5, 2]            # optional: Table 2 / closest aspect ratio by default
     agents:                      # optional: one per subarea, based at its sweep start
-      - {id: 0, base: [0, 1]}    # optional period: 2 = moves one cell every 2 steps
+      - {id: 0, base: [0, 1]}    # optional period: 2 = moves one cell every 2 steps;
+                                 # forbidden: [[x0, y0, x1, y1]] (never searched by it, see
+                                 # ost negotiate partition); sweep: [[x, y], ...] (its own
+                                 # sweep waypoints instead of its subarea's; all agents or none)
     objects:
       - {id: 0, location: [12, 7], destination: [300, 150], required: 3}
     nmax: 10                     # optional: defaults to the largest ``required``
@@ -80,6 +83,16 @@ def build_scenario(grid: Grid, objects: list[ObjectSpec] | tuple[ObjectSpec, ...
                                 f"{grid.width}x{grid.height} grid")
         if not isinstance(a.period, int) or a.period < 1:
             raise ScenarioError(f"agents[{k}].period: must be an integer >= 1, got {a.period!r}")
+        for i, c in enumerate(a.sweep):
+            if not grid.contains(c):
+                raise ScenarioError(f"agents[{k}].sweep[{i}]: {list(c)} is off the "
+                                    f"{grid.width}x{grid.height} grid")
+        for i, (x0, y0, x1, y1) in enumerate(a.forbidden):
+            if not (0 <= x0 <= x1 < grid.width and 0 <= y0 <= y1 < grid.height):
+                raise ScenarioError(f"agents[{k}].forbidden[{i}]: {[x0, y0, x1, y1]} must satisfy "
+                                    f"0 <= x0 <= x1 < {grid.width} and 0 <= y0 <= y1 < {grid.height}")
+    if any(a.sweep for a in agents):
+        _check_coverage(grid, agents, areas)
     objects = sorted(objects, key=lambda o: o.id)
     largest = max((o.required for o in objects), default=1)
     nmax = largest if nmax is None else nmax
@@ -105,6 +118,28 @@ def build_scenario(grid: Grid, objects: list[ObjectSpec] | tuple[ObjectSpec, ...
             raise ScenarioError(f"{where}.required: {o.required} is outside 1..nmax={nmax}")
     return Scenario(grid=grid, partition=tuple(partition), agents=tuple(agents),
                     objects=tuple(objects), nmax=nmax, subareas=areas)
+
+
+def _check_coverage(grid: Grid, agents: list[AgentSpec], areas) -> None:
+    """Own sweeps (all agents or none) must together sense every cell, or objects go unfound."""
+    import numpy as np
+
+    from ost_ros.search import agent_plan, route
+
+    missing = [k for k, a in enumerate(agents) if not a.sweep]
+    if missing:
+        raise ScenarioError(f"agents[{missing[0]}].sweep: missing (give every agent a sweep, or none)")
+    seen = np.zeros((grid.height + 2, grid.width + 2), dtype=bool)   # padded: 3x3 at the edges
+    for area, a in zip(areas, agents):
+        cells = np.array(route(agent_plan(area, a.base, a.sweep)), dtype=np.int64).reshape(-1, 2)
+        for dx in (0, 1, 2):
+            for dy in (0, 1, 2):
+                seen[cells[:, 1] + dy, cells[:, 0] + dx] = True
+    gap = np.argwhere(~seen[1:-1, 1:-1])
+    if len(gap):
+        y, x = gap[0]
+        raise ScenarioError(f"agents: cell ({x}, {y}) is sensed by no agent's sweep "
+                            f"({len(gap)} such cells)")
 
 
 def with_team(scenario: Scenario, n_agents: int) -> Scenario:
@@ -143,11 +178,19 @@ def _scenario_from_dict(data: Any) -> Scenario:
     if "agents" in data:
         agents = []
         for k, a in enumerate(v.listing(data["agents"], "agents")):
-            a = v.mapping(a, f"agents[{k}]", ("id", "base", "period"), ("id",))
+            a = v.mapping(a, f"agents[{k}]", ("id", "base", "period", "sweep", "forbidden"), ("id",))
             aid = v.integer(a["id"], f"agents[{k}].id", 0)
             base = v.cell(a["base"], f"agents[{k}].base") if "base" in a else None
             period = v.integer(a["period"], f"agents[{k}].period", 1) if "period" in a else 1
-            agents.append((aid, base, period))
+            sweep = tuple(v.cell(c, f"agents[{k}].sweep[{i}]")
+                          for i, c in enumerate(v.listing(a.get("sweep", []), f"agents[{k}].sweep")))
+            zones = []
+            for i, z in enumerate(v.listing(a.get("forbidden", []), f"agents[{k}].forbidden")):
+                where = f"agents[{k}].forbidden[{i}]"
+                if not isinstance(z, list) or len(z) != 4:
+                    raise ScenarioError(f"{where}: expected [x0, y0, x1, y1], got {z!r}")
+                zones.append(tuple(v.integer(c, where, 0) for c in z))
+            agents.append((aid, base, period, sweep, tuple(zones)))
     objects = []
     for k, o in enumerate(v.listing(data["objects"], "objects")):
         o = v.mapping(o, f"objects[{k}]", ("id", "location", "destination", "required"),
@@ -157,15 +200,15 @@ def _scenario_from_dict(data: Any) -> Scenario:
                                   v.cell(o["destination"], f"objects[{k}].destination"),
                                   v.integer(o["required"], f"objects[{k}].required", 1)))
     nmax = v.integer(data["nmax"], "nmax", 1) if "nmax" in data else None
-    if agents is not None and any(base is None for _, base, _ in agents):
+    if agents is not None and any(a[1] is None for a in agents):
         # Agents without a base get their subarea's start cell: needs the partition first.
         if not agents:
             raise ScenarioError("agents: the team needs at least one agent")
         default = build_scenario(grid, [], n_agents=len(agents), partition=partition)
         order = sorted(range(len(agents)), key=lambda k: agents[k][0])
         bases = {agents[k][0]: default.subareas[rank].start for rank, k in enumerate(order)}
-        agents = [(aid, base if base is not None else bases[aid], per) for aid, base, per in agents]
-    team = None if agents is None else [AgentSpec(aid, base, per) for aid, base, per in agents]
+        agents = [(aid, base if base is not None else bases[aid], *rest) for aid, base, *rest in agents]
+    team = None if agents is None else [AgentSpec(*a) for a in agents]
     return build_scenario(grid, objects, partition=partition, agents=team, nmax=nmax)
 
 
@@ -198,7 +241,9 @@ def scenario_to_dict(scenario: Scenario) -> dict:
     return {
         "grid": {"width": scenario.grid.width, "height": scenario.grid.height},
         "partition": list(scenario.partition),
-        "agents": [{"id": a.id, "base": list(a.base), **({"period": a.period} if a.period != 1 else {})}
+        "agents": [{"id": a.id, "base": list(a.base), **({"period": a.period} if a.period != 1 else {}),
+                    **({"forbidden": [list(z) for z in a.forbidden]} if a.forbidden else {}),
+                    **({"sweep": [list(c) for c in a.sweep]} if a.sweep else {})}
                    for a in scenario.agents],
         "objects": [{"id": o.id, "location": list(o.location), "destination": list(o.destination),
                      "required": o.required} for o in scenario.objects],

@@ -46,6 +46,15 @@ def sweep_plan(area: Subarea, base: Cell) -> list[Cell]:
     return ([base] + points) if base != points[0] else points
 
 
+def agent_plan(area: Subarea, base: Cell, sweep: tuple[Cell, ...] = ()) -> list[Cell]:
+    """An agent's search waypoints: its own ``sweep`` if it has one (a negotiated partition),
+    else its subarea's boustrophedon — from its base either way."""
+    if not sweep:
+        return sweep_plan(area, base)
+    points = [tuple(c) for c in sweep]
+    return ([base] + points) if base != points[0] else points
+
+
 def plan_length(waypoints: list[Cell]) -> int:
     """Number of steps needed to follow the waypoints (the time the search ends)."""
     return sum(manhattan(a, b) for a, b in zip(waypoints, waypoints[1:]))
@@ -59,8 +68,8 @@ class SweepSummary:
     end: Cell
 
     @classmethod
-    def of(cls, area: Subarea, base: Cell) -> "SweepSummary":
-        points = sweep_plan(area, base)
+    def of(cls, area: Subarea, base: Cell, sweep: tuple[Cell, ...] = ()) -> "SweepSummary":
+        points = agent_plan(area, base, sweep)
         return cls(plan_length(points), points[-1])
 
 

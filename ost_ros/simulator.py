@@ -45,6 +45,9 @@ def make_agents(scenario: Scenario, protocol: str, policy: CoordinationPolicy,
         raise ValueError(f"unknown protocol {protocol!r} (choose from {', '.join(PROTOCOLS)})")
     team = TeamInfo.from_scenario(scenario)
     if protocol == "hcp":
+        if any(a.sweep for a in scenario.agents):
+            raise ValueError("HCP owns objects by the equal partition's subareas; a scenario with "
+                             "own sweeps (a negotiated partition) needs ccp or ncp")
         if scenario.heterogeneous:
             raise ValueError("HCP runs unit-speed teams only (agent periods other than 1 need "
                              "ccp or ncp)")

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ost_ros.model import Cell, Grid, Scenario, Subarea, arrival_np
-from ost_ros.search import SweepSummary
+from ost_ros.search import SweepSummary, agent_plan, route
 
 
 @dataclass(frozen=True)
@@ -22,6 +22,7 @@ class TeamInfo:
     areas: tuple[Subarea, ...]
     sweeps: tuple[SweepSummary, ...]
     periods: tuple[int, ...] = ()       # each agent moves every k steps (empty: all 1)
+    plans: tuple[tuple[Cell, ...], ...] = ()   # each agent's search waypoints (from its base)
 
     @classmethod
     def from_scenario(cls, scenario: Scenario) -> "TeamInfo":
@@ -31,9 +32,16 @@ class TeamInfo:
             agent_ids=tuple(a.id for a in agents),
             bases=tuple(a.base for a in agents),
             areas=scenario.subareas,
-            sweeps=tuple(SweepSummary.of(area, a.base) for area, a in zip(scenario.subareas, agents)),
+            sweeps=tuple(SweepSummary.of(area, a.base, a.sweep)
+                         for area, a in zip(scenario.subareas, agents)),
             periods=tuple(a.period for a in agents),
+            plans=tuple(tuple(agent_plan(area, a.base, a.sweep))
+                        for area, a in zip(scenario.subareas, agents)),
         )
+
+    def search_path(self, k: int) -> list[Cell]:
+        """Agent k's search, cell by cell (its own sweep or its subarea's)."""
+        return route(list(self.plans[k]))
 
     @property
     def size(self) -> int:

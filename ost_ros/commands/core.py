@@ -60,6 +60,10 @@ def register(sub) -> None:
     p.add_argument("--agents", type=positive,
                    help="replace the scenario's team by N agents (default partition and bases)")
     p.add_argument("--max-steps", type=positive, help="stop after this many steps")
+    p.add_argument("--partition", choices=("equal", "negotiated"), default="equal",
+                   help="search areas: the paper's equal m×n partition, or negotiated among the "
+                        "robots by speed and private forbidden zones (ost negotiate partition)")
+    p.add_argument("--partition-seed", type=natural, default=0, help="seed of that negotiation (0)")
     p.add_argument("--fail", type=failure, action="append", default=[], metavar="AGENT:STEP",
                    help="robot AGENT fails in step STEP (repeatable; ccp): survivors re-coordinate")
     p.add_argument("--engine", choices=("auto",) + ENGINES, default="auto",
@@ -115,6 +119,19 @@ def cmd_sim(args: argparse.Namespace) -> int:
     ncp = NegotiationSettings(delta=args.ncp_delta, timeout_rounds=args.ncp_timeout)
     scenario = load_scenario_arg(args.scenario, args.agents)
     policy = CoordinationPolicy(ci=args.ci, interval=args.interval, area_fraction=args.area_fraction)
+    if args.partition == "negotiated":
+        if args.protocol == "hcp":
+            raise UsageError("--partition negotiated: HCP owns objects by the equal partition's "
+                             "subareas; use --protocol ccp or ncp")
+        from ost_ros.negotiation.errors import NegotiationError
+        from ost_ros.negotiation.partition import negotiated_scenario
+        try:
+            scenario = negotiated_scenario(scenario, seed=args.partition_seed)[0]
+        except (NegotiationError, ScenarioError) as exc:
+            raise UsageError(f"--partition negotiated: {exc}") from None
+    if any(a.sweep for a in scenario.agents) and args.protocol == "hcp":
+        raise UsageError(f"{args.scenario}: its robots have their own sweeps (a negotiated "
+                         "partition); HCP owns objects by the equal partition: use ccp or ncp")
     if scenario.heterogeneous and args.protocol == "hcp":
         raise UsageError(f"{args.scenario}: HCP runs unit-speed teams only (some agent has a "
                          "period other than 1); use --protocol ccp or ncp")

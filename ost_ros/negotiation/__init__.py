@@ -20,6 +20,7 @@ _EXPORTS = {
     "NegotiationResult": "multiparty", "negotiate": "multiparty", "Offer": "messages",
     "AreaSearch": "proposals", "optimal_allocation": "optimal",
     "SearchRobot": "partition", "SearchTeam": "partition", "negotiate_partition": "partition",
+    "negotiated_scenario": "partition",
 }
 __all__ = sorted(_EXPORTS)
 

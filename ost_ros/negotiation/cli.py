@@ -4,6 +4,7 @@
     ost negotiate run --file task.yaml [--json]
     ost negotiate reproduce --out DIR [--quick] [--seed S] [--runs K] [--jobs J]
     ost negotiate partition [--file team.yaml] [--robots N --periods 1,2,1 --width W --height H] [--json] [--plot F.png]
+    ost negotiate partition --scenario s.yaml [-o negotiated.yaml]
 """
 from __future__ import annotations
 
@@ -67,6 +68,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     part.add_argument("--rule", help="where the speed preference lives: patience (default) or reward")
     part.add_argument("--seed", type=int, help="random seed (default 0)")
     part.add_argument("--max-rounds", type=int, help="time-out in rounds (default 200)")
+    part.add_argument("--scenario", type=Path, help="an OST scenario: its grid and robots (periods, "
+                                                    "forbidden zones) form the team")
+    part.add_argument("-o", "--output", type=Path, help="with --scenario: write the scenario with "
+                                                        "every robot sweeping its negotiated region")
     part.add_argument("--json", action="store_true", help="print the result as JSON")
     part.add_argument("--plot", type=Path, help="write the ownership maps (negotiated, equal) to this PNG")
     part.set_defaults(func=cmd_partition, prog=part.prog)
@@ -255,16 +260,40 @@ def cmd_partition(args: argparse.Namespace) -> int:
     from .partition import SearchTeam, apply_flags, negotiate_partition
 
     UsageError = _usage_error()
-    spec: dict[str, Any] = load_task_file(args.file) if args.file else {}
-    if args.plot is not None and not args.plot.parent.is_dir():
-        raise UsageError(f"--plot {args.plot}: directory {args.plot.parent} does not exist")
-    try:
-        spec = apply_flags(spec, width=args.width, height=args.height, robots=args.robots, periods=args.periods,
-                           delta=args.delta, seed=args.seed, max_rounds=args.max_rounds, rule=args.rule)
-        team = SearchTeam.from_spec(spec)
-        result = negotiate_partition(team)
-    except NegotiationError as exc:
-        raise UsageError(str(exc)) from None
+    for flag, path in (("--plot", args.plot), ("--output", args.output)):
+        if path is not None and not path.resolve().parent.is_dir():
+            raise UsageError(f"{flag} {path}: directory {path.parent} does not exist")
+    if args.output is not None and args.scenario is None:
+        raise UsageError("--output: needs --scenario (the scenario to write with negotiated sweeps)")
+    if args.scenario is not None:
+        given = [f for f, v in (("--file", args.file), ("--robots", args.robots), ("--periods", args.periods),
+                                ("--width", args.width), ("--height", args.height)) if v is not None]
+        if given:
+            raise UsageError(f"--scenario: the team comes from the scenario, not {given[0]}")
+        from ost_ros.scenario import ScenarioError, dump_scenario, load_scenario
+        from .partition import negotiated_scenario
+        try:
+            base = load_scenario(args.scenario)
+            scenario, result = negotiated_scenario(
+                base, delta=0.95 if args.delta is None else args.delta, seed=args.seed or 0,
+                max_rounds=args.max_rounds or 200, rule=args.rule or "patience")
+        except (ScenarioError, NegotiationError) as exc:
+            raise UsageError(str(exc)) from None
+        if args.output is not None:
+            try:
+                args.output.write_text(dump_scenario(scenario))
+            except OSError as exc:
+                raise UsageError(f"cannot write {args.output}: {exc.strerror or exc}") from None
+    else:
+        spec: dict[str, Any] = load_task_file(args.file) if args.file else {}
+        try:
+            spec = apply_flags(spec, width=args.width, height=args.height, robots=args.robots,
+                               periods=args.periods, delta=args.delta, seed=args.seed,
+                               max_rounds=args.max_rounds, rule=args.rule)
+            team = SearchTeam.from_spec(spec)
+            result = negotiate_partition(team)
+        except NegotiationError as exc:
+            raise UsageError(str(exc)) from None
     if args.plot is not None:
         try:
             result.plot(args.plot)

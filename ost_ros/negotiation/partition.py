@@ -643,3 +643,32 @@ def plot_partition(result: PartitionResult, path: str | Path) -> None:
     fig.tight_layout(rect=(0, 0.06, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+# ------------------------------------------------------------------ into an OST scenario -------
+def team_of(scenario, *, delta: float = 0.95, seed: int = 0, max_rounds: int = 200,
+            rule: str = "patience") -> SearchTeam:
+    """The negotiation team of an OST scenario: its grid, its robots (periods, forbidden zones)."""
+    robots = tuple(SearchRobot(a.id, a.period, tuple(a.forbidden)) for a in scenario.agents)
+    return SearchTeam(scenario.grid.width, scenario.grid.height, robots, delta, seed, max_rounds, rule)
+
+
+def negotiated_scenario(scenario, *, delta: float = 0.95, seed: int = 0, max_rounds: int = 200,
+                        rule: str = "patience", search: AreaSearch | None = None):
+    """The scenario with every robot sweeping its negotiated region instead of its equal
+    subarea (``AgentSpec.sweep``); a robot based at its subarea's sweep start (the default) is
+    based at its region's sweep start instead. Returns (scenario, PartitionResult)."""
+    from dataclasses import replace
+
+    from ost_ros.scenario import build_scenario
+
+    result = negotiate_partition(team_of(scenario, delta=delta, seed=seed, max_rounds=max_rounds,
+                                         rule=rule), search)
+    agents = []
+    for k, a in enumerate(scenario.agents):
+        pts = tuple(tuple(int(v) for v in p) for p in result.routes[k]) or (a.base,)
+        base = pts[0] if a.base == scenario.subareas[k].start else a.base
+        agents.append(replace(a, sweep=pts, base=base))
+    out = build_scenario(scenario.grid, list(scenario.objects), partition=scenario.partition,
+                         agents=agents, nmax=scenario.nmax)
+    return out, result
