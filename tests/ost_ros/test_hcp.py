@@ -5,7 +5,6 @@ import random
 
 from hypothesis import given, settings, strategies as st
 
-from ost_msgs_py.messages import HelpAccept, HelpOffer, HelpRequest
 from ost_ros.model import Grid, ObjectSpec, manhattan
 from ost_ros.scenario import build_scenario, generate_objects
 from ost_ros.simulator import finish_result, make_agents, simulate

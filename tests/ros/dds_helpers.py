@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import pickle
 import signal
 import subprocess
 import sys
@@ -81,6 +82,38 @@ def ost_up(*args: str, timeout: float = 240) -> subprocess.CompletedProcess:
             out, err = p.communicate()
         raise AssertionError(f"ost_up.sh {' '.join(args)} timed out after {timeout} s:\n{err[-3000:]}")
     return subprocess.CompletedProcess(p.args, p.returncode, out, err)
+
+
+def checkpoint_step(path) -> int:
+    """The step in the world's checkpoint file (-1 while there is none)."""
+    try:
+        with open(path, "rb") as f:
+            return pickle.load(f)["rt"].world.t
+    except (OSError, EOFError, pickle.UnpicklingError, KeyError):
+        return -1
+
+
+def kill_mid_run(run_dir: Path, victim: str, at_step: int, *args: str,
+                 timeout: float = 180) -> subprocess.CompletedProcess:
+    """Run ost_up.sh with ``args`` and SIGKILL the process ``victim`` (``world``, ``agent_3``,
+    ...) once the world's checkpoint has reached ``at_step``; the completed ost_up.sh process."""
+    env = dict(os.environ, OST_VENV=str(BIN.parent))
+    env.pop("ROS_DOMAIN_ID", None)
+    up = subprocess.Popen(["bash", str(UP), *args, "--run-dir", str(run_dir)],
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                          start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while checkpoint_step(run_dir / "world.checkpoint") < at_step:
+            assert time.monotonic() < deadline and up.poll() is None, up.stderr.read()[-2000:]
+            time.sleep(0.02)
+        os.kill(int((run_dir / f"{victim}.pid").read_text()), signal.SIGKILL)
+        out, err = up.communicate(timeout=timeout)
+    finally:
+        if up.poll() is None:
+            os.killpg(up.pid, signal.SIGTERM)
+            up.wait(20)
+    return subprocess.CompletedProcess(up.args, up.returncode, out, err)
 
 
 class Processes:

@@ -3,13 +3,9 @@ step, or from outside at an arbitrary moment) is detected by its lost liveliness
 in the step the world was at, and the survivors re-coordinate — the result is exactly the
 in-process run with that failure (``ost sim --fail AGENT:STEP``). Too few survivors, or a
 protocol that does not recover (hcp), end the run with a result that says why."""
-import os
-import pickle
-import signal
 import subprocess
-import time
 
-from dds_helpers import BIN, UP, ost_up, result_json
+from dds_helpers import kill_mid_run, ost_up, result_json
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
@@ -46,35 +42,13 @@ def test_agent_killing_itself_at_a_step_equals_ost_sim_with_that_failure(tmp_pat
     assert "Traceback" not in world
 
 
-def checkpoint_step(path) -> int:
-    try:
-        with open(path, "rb") as f:
-            return pickle.load(f)["rt"].world.t
-    except (OSError, EOFError, pickle.UnpicklingError, KeyError):
-        return -1
-
-
 def test_agent_killed_from_outside_at_any_moment(tmp_path):
     scenario, path = scenario_file(tmp_path, n=6, m=10, seed=3, grid=Grid(36, 18))
     run_dir = tmp_path / "run"
-    env = dict(os.environ, OST_VENV=str(BIN.parent))
-    env.pop("ROS_DOMAIN_ID", None)
     # skipping off and a short lease: the kill lands mid-run, wherever the lockstep is
-    up = subprocess.Popen(["bash", str(UP), "--scenario", str(path), "--json", "--no-skip",
-                           "--failure-timeout", "1", "--run-dir", str(run_dir)],
-                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-                          start_new_session=True)
-    try:
-        deadline = time.monotonic() + 120
-        while checkpoint_step(run_dir / "world.checkpoint") < 30:
-            assert time.monotonic() < deadline and up.poll() is None, up.stderr.read()[-2000:]
-            time.sleep(0.02)
-        os.kill(int((run_dir / "agent_4.pid").read_text()), signal.SIGKILL)
-        out, err = up.communicate(timeout=180)
-    finally:
-        if up.poll() is None:
-            os.killpg(up.pid, signal.SIGTERM)
-            up.wait(15)
+    up = kill_mid_run(run_dir, "agent_4", 30, "--scenario", str(path), "--json", "--no-skip",
+                      "--failure-timeout", "1")
+    out, err = up.stdout, up.stderr
     assert up.returncode == 0, err
     got = result_json(out)
     assert [f["agent"] for f in got["failures"]] == [4] and got["failures"][0]["step"] >= 30

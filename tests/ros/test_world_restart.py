@@ -1,24 +1,13 @@
 """The world node checkpoints its truth before publishing each step; killed (SIGKILL) in the
 middle of a run and restarted with ``resume:=true`` (ost_up.sh --respawn-world), it continues the
 run, and the result is exactly the uninterrupted run's (= ``ost sim``)."""
-import os
 import pickle
-import signal
 import subprocess
-import time
 
-from dds_helpers import BIN, UP, reference, result_json
+from dds_helpers import BIN, kill_mid_run, reference, result_json
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
-
-
-def checkpoint_step(path) -> int:
-    try:
-        with open(path, "rb") as f:
-            return pickle.load(f)["rt"].world.t
-    except (OSError, EOFError, pickle.UnpicklingError):
-        return -1
 
 
 def test_world_killed_mid_run_resumes_from_checkpoint(tmp_path):
@@ -27,24 +16,10 @@ def test_world_killed_mid_run_resumes_from_checkpoint(tmp_path):
     path.write_text(dump_scenario(scenario))
     expected = reference(scenario, "ccp", CoordinationPolicy(ci=1))
     run_dir = tmp_path / "run"
-    env = dict(os.environ, OST_VENV=str(BIN.parent))
-    env.pop("ROS_DOMAIN_ID", None)
     # skipping off: a round trip per step, so the run lasts long enough to be interrupted
-    up = subprocess.Popen(["bash", str(UP), "--scenario", str(path), "--json", "--no-skip",
-                           "--respawn-world", "1", "--run-dir", str(run_dir)],
-                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-                          start_new_session=True)
-    try:
-        deadline = time.monotonic() + 120
-        while checkpoint_step(run_dir / "world.checkpoint") < 40:
-            assert time.monotonic() < deadline and up.poll() is None, up.stderr.read()[-2000:]
-            time.sleep(0.05)
-        os.kill(int((run_dir / "world.pid").read_text()), signal.SIGKILL)
-        out, err = up.communicate(timeout=180)
-    finally:
-        if up.poll() is None:
-            os.killpg(up.pid, signal.SIGTERM)
-            up.wait(20)
+    up = kill_mid_run(run_dir, "world", 40, "--scenario", str(path), "--json", "--no-skip",
+                      "--respawn-world", "1")
+    out, err = up.stdout, up.stderr
     assert up.returncode == 0, err
     assert "restarting it from its checkpoint" in err
     assert "resuming step" in (run_dir / "world.log").read_text()
