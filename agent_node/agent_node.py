@@ -4,6 +4,7 @@
 
 Parameters: ``agent_id``, ``scenario`` (YAML file), ``agents`` (team size override, 0 = the
 file's), ``protocol``, ``ci`` / ``interval`` / ``area_fraction`` (the coordination trigger),
+``coordination`` (``distributed``, or ``coordinator``: the lowest-id agent alone coordinates),
 ``lookahead`` (quiet steps planned for event skipping; 0 = off); NCP: ``ncp_delta``,
 ``ncp_timeout`` (rounds) and ``mute_negotiation_from`` (fault injection: from this step the
 negotiator sends no moves; -1 = never), ``failure_timeout`` (s, the liveliness lease offered
@@ -28,7 +29,7 @@ from std_msgs.msg import String
 from agent_node import transport as tp
 from agent_node.runtime import AgentRuntime, ProtocolViolation
 from ost_msgs_py.runtime import Ready, Resend, RunEnd, StepMessages, Tick
-from ost_ros.coordination import CoordinationPolicy
+from ost_ros.coordination import ORGANISATIONS, CoordinationPolicy
 from ost_ros.ncp import NegotiationSettings
 from ost_ros.scenario import ScenarioError, load_scenario, with_team
 from ost_ros.simulator import PROTOCOLS, make_agents
@@ -57,7 +58,7 @@ def load_agent(node: Node):
     """Read and check the parameters; the runtime around the core agent."""
     p = {name: node.get_parameter(name).value for name in
          ("agent_id", "scenario", "agents", "protocol", "ci", "interval", "area_fraction",
-          "lookahead", "ncp_delta", "ncp_timeout", "mute_negotiation_from")}
+          "lookahead", "ncp_delta", "ncp_timeout", "mute_negotiation_from", "coordination")}
     if p["agent_id"] < 0:
         raise ParameterError("agent_id: must be set to a non-negative id (-p agent_id:=N)")
     if not p["scenario"]:
@@ -82,8 +83,13 @@ def load_agent(node: Node):
     ids = tuple(a.id for a in scenario.agents)
     if p["agent_id"] not in ids:
         raise ParameterError(f"agent_id: {p['agent_id']} is not in the scenario's team {list(ids)}")
+    if p["coordination"] not in ORGANISATIONS or (p["coordination"] == "coordinator"
+                                                  and p["protocol"] != "ccp"):
+        raise ParameterError(f"coordination: {p['coordination']!r} is not one of "
+                             f"{', '.join(ORGANISATIONS)} (coordinator: ccp only)")
     policy = CoordinationPolicy(ci=p["ci"], interval=p["interval"] or None,
-                                area_fraction=p["area_fraction"] or None)
+                                area_fraction=p["area_fraction"] or None,
+                                organisation=p["coordination"])
     agent = next(a for a in make_agents(scenario, p["protocol"], policy, ncp) if a.id == p["agent_id"])
     if p["mute_negotiation_from"] >= 0 and p["protocol"] == "ncp":
         # fault injection (tests, demos): this negotiator stops answering from that step on
@@ -256,6 +262,7 @@ def declare(node: Node) -> None:
     node.declare_parameter("ci", 1)
     node.declare_parameter("interval", 0)
     node.declare_parameter("area_fraction", 0.0)
+    node.declare_parameter("coordination", "distributed")
     node.declare_parameter("lookahead", 64)
     node.declare_parameter("failure_timeout", tp.FAILURE_TIMEOUT_S)
     node.declare_parameter("die_at_step", -1)

@@ -5,6 +5,7 @@
 #       [--protocol ccp|hcp|ncp] [--ci K | --interval T] [--width W --height H --nmax X]
 #       [--mute-negotiation AGENT:STEP] [--respawn-world K]
 #       [--kill-agent AGENT:STEP]... [--failure-timeout SEC] [--partition equal|negotiated]
+#       [--coordination distributed|coordinator]
 #       [--hosts K [--loss PCT] [--discovery multicast|static|server]]
 #       [--domain-id D] [--run-dir DIR] [--json] [--no-skip] [--max-steps S]
 #       [--timeout SEC] [--background]
@@ -25,7 +26,8 @@
 # re-coordinate (ccp; hcp and ncp runs end with the reason). --kill-agent AGENT:STEP makes that
 # agent SIGKILL itself on the tick of that step (fault injection; repeatable). --partition
 # negotiated: the robots' search areas are negotiated first (`ost negotiate partition`, by speed
-# and private forbidden zones); every process then loads that scenario.
+# and private forbidden zones); every process then loads that scenario. --coordination
+# coordinator: the lowest-id agent alone runs Algorithm Coordination and broadcasts the schedule.
 set -uo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -37,7 +39,7 @@ die() { echo "$me: error: $*" >&2; exit 2; }
 say() { echo "$me: $*" >&2; }
 
 agents="" objects="" seed="" scenario="" protocol="ccp" ci="1" interval="" width="" height="" nmax=""
-mute="" respawn=0 hosts=0 loss=0 discovery="multicast" kills=() failure_timeout=1.0 partition=equal
+mute="" respawn=0 hosts=0 loss=0 discovery="multicast" kills=() failure_timeout=1.0 partition=equal coordination=distributed
 domain="${ROS_DOMAIN_ID:-}" run_dir="" json=0 skip=true max_steps=0 timeout=0 background=0
 need() { [ $# -ge 2 ] && [ -n "$2" ] || die "$1 needs a value"; }
 int() { [[ "$2" =~ ^[0-9]+$ ]] || die "$1: expected a non-negative integer, got '$2'"; }
@@ -60,6 +62,8 @@ while [ $# -gt 0 ]; do
     --mute-negotiation) need "$@"; [[ "$2" =~ ^[0-9]+:[0-9]+$ ]] \
         || die "--mute-negotiation: expected AGENT:STEP, got '$2'"; mute="$2"; shift 2 ;;
     --respawn-world) need "$@"; int "$1" "$2"; respawn="$2"; shift 2 ;;
+    --coordination) need "$@"; case "$2" in distributed|coordinator) ;; *)
+        die "--coordination: '$2' is not distributed or coordinator" ;; esac; coordination="$2"; shift 2 ;;
     --partition) need "$@"; case "$2" in equal|negotiated) ;; *)
         die "--partition: '$2' is not equal or negotiated" ;; esac; partition="$2"; shift 2 ;;
     --kill-agent) need "$@"; [[ "$2" =~ ^[0-9]+:[0-9]+$ ]] \
@@ -73,7 +77,7 @@ while [ $# -gt 0 ]; do
     --json) json=1; shift ;;
     --no-skip) skip=false; shift ;;
     --background) background=1; shift ;;
-    -h|--help) sed -n '2,31p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,34p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) die "unknown argument '$1' (see --help)" ;;
   esac
 done
@@ -90,6 +94,7 @@ fi
 [ -z "$domain" ] || [ "$domain" -le 232 ] || die "--domain-id: $domain is above 232"
 case "$protocol" in ccp|hcp|ncp) ;; *) die "--protocol: '$protocol' is not ccp, hcp or ncp" ;; esac
 [ -z "$mute" ] || [ "$protocol" = ncp ] || die "--mute-negotiation: only with --protocol ncp"
+[ "$coordination" = distributed ] || [ "$protocol" = ccp ] || die "--coordination coordinator: only with --protocol ccp"
 case "$discovery" in multicast|static|server) ;; *) die "--discovery: '$discovery' is not multicast, static or server" ;; esac
 [ "$loss" -le 100 ] || die "--loss: a percentage 0..100"
 if [ "$hosts" -gt 0 ]; then
@@ -121,7 +126,7 @@ if [ "$background" = 1 ]; then
   [ -n "$mute" ] && fwd+=(--mute-negotiation "$mute")
   [ "$respawn" -gt 0 ] && fwd+=(--respawn-world "$respawn")
   for kv in "${kills[@]}"; do fwd+=(--kill-agent "$kv"); done
-  fwd+=(--failure-timeout "$failure_timeout" --partition "$partition")
+  fwd+=(--failure-timeout "$failure_timeout" --partition "$partition" --coordination "$coordination")
   [ "$hosts" -gt 0 ] && fwd+=(--hosts "$hosts" --loss "$loss" --discovery "$discovery")
   [ -n "$domain" ] && fwd+=(--domain-id "$domain")
   [ "$skip" = false ] && fwd+=(--no-skip)
@@ -218,6 +223,7 @@ cat > "$run_dir/params.yaml" <<EOF
     protocol: "$protocol"
     ci: $ci
     interval: ${interval:-0}
+    coordination: "$coordination"
     failure_timeout: $failure_timeout
 EOF
 cat > "$run_dir/world_params.yaml" <<EOF

@@ -8,7 +8,8 @@ Two families:
 - agent ↔ agent (the comm module): :class:`ObjectFound`, :class:`SearchDone`, :class:`Selection`,
   and the help-based protocol's :class:`HelpRequest`, :class:`HelpOffer`, :class:`HelpAccept`,
   :class:`HelpRelease`, the negotiation protocol's :class:`NegotiationOffer`, and for recovery
-  from a failed robot :class:`Status` (and the world's notice :class:`AgentLost`);
+  from a failed robot :class:`Status` (and the world's notice :class:`AgentLost`), and the
+  coordinator organisation's :class:`ScheduleUpdate`;
 - agent ↔ world (sensing and acting): :class:`Observation`, :class:`Action`.
 """
 from __future__ import annotations
@@ -150,6 +151,30 @@ class NegotiationOffer:
     version: int = SCHEMA_VERSION
 
 
+@dataclass(frozen=True)
+class ScheduledObject:
+    """One entry of a coordinator's schedule: the object, its group, carry start and finish."""
+
+    object: int
+    agents: tuple[int, ...]
+    start: int
+    finish: int
+
+
+@dataclass(frozen=True)
+class ScheduleUpdate:
+    """Coordinator organisation (paper §3): the coordinator's result of coordination
+    ``coordination``, in scheduling order; ``final``: the one after the whole search."""
+
+    TYPE: ClassVar[str] = "schedule_update"
+    sender: int
+    t: int
+    coordination: int
+    assignments: tuple[ScheduledObject, ...]
+    final: bool = False
+    version: int = SCHEMA_VERSION
+
+
 WORLD = -1   # sender of the world's notices
 
 
@@ -219,7 +244,8 @@ class Action:
 
 
 AGENT_MESSAGES: tuple[type, ...] = (ObjectFound, SearchDone, Selection, HelpRequest, HelpOffer,
-                                    HelpAccept, HelpRelease, NegotiationOffer, Status, AgentLost)
+                                    HelpAccept, HelpRelease, NegotiationOffer, Status, AgentLost,
+                                    ScheduleUpdate)
 WORLD_MESSAGES: tuple[type, ...] = (Observation, Action)
 ALL_MESSAGES: dict[str, type] = {cls.TYPE: cls for cls in AGENT_MESSAGES + WORLD_MESSAGES}
 

@@ -10,6 +10,11 @@ LISTENING —(all agents finished searching)→ COORDINATING → CLOSED (final s
 Any state —(the world's AgentLost)→ RECOVERING —(every survivor's Status, next step)→
 COORDINATING → LISTENING or CLOSED: what the dead robot had not done is handed to survivors
 (:mod:`ost_ros.recovery`, docs/interpretation.md "Robot failures").
+
+Coordinator organisation (``policy.organisation == "coordinator"``): at a coordination point
+every agent sets the same objects aside, but only the lowest-id agent runs Algorithm
+Coordination — for schedules that start a step later — and broadcasts the result
+(:class:`ScheduleUpdate`); everyone adopts it the next step (the final one closes the comm).
 """
 from __future__ import annotations
 
@@ -20,7 +25,8 @@ import numpy as np
 
 from dataclasses import replace
 
-from ost_msgs_py.messages import AgentLost, ObjectFound, SearchDone, Selection, Status
+from ost_msgs_py.messages import (AgentLost, ObjectFound, ScheduledObject, ScheduleUpdate, SearchDone,
+                                  Selection, Status)
 from ost_ros.coordination import Assignment, CoordinationPolicy, coordinate
 from ost_ros.model import Cell, ObjectSpec, arrival_np, group_period
 from ost_ros.recovery import Sweep, drop_cell, remaining_sweep
@@ -64,6 +70,10 @@ class CcpComm:
     impossible: set[int] = field(default_factory=set)
     orphans: list[tuple[Cell, ...]] = field(default_factory=list)
     reset: bool = False            # the agent drops its not-started tasks (set on a failure)
+    # Coordinator organisation: objects set aside for the coordinator's next update, and
+    # whether that update is the final one.
+    awaiting: set[int] = field(default_factory=set)
+    closing: bool = False
     _selections: dict[int, tuple[tuple[int, ...], np.ndarray]] = field(default_factory=dict)
     _outbox: list = field(default_factory=list)
 
@@ -107,16 +117,19 @@ class CcpComm:
                     self.statuses[msg.sender] = msg
             elif isinstance(msg, AgentLost):
                 self._lose(msg.agent, msg.t)
+            elif isinstance(msg, ScheduleUpdate):
+                self._adopt(t, msg)
         if self.recovering is not None:
             if self.recovering == t:
                 return            # statuses come next step
             self._recover(t)
-        if self.state is CommState.CLOSED:
+        if self.state is CommState.CLOSED or self.closing:
             return
         if self.all_searched:
-            self._coordinate(t)
-            self.state = CommState.CLOSED
-            self.predicted_makespan = self._predict_makespan(t)
+            self._coordinate(t, final=True)
+            if not self.closing:
+                self.state = CommState.CLOSED
+                self.predicted_makespan = self._predict_makespan(t)
         elif self.policy.due(t, len(self.unscheduled), self.team.searched_fraction(t - 1),
                              self.team.searched_fraction(t)):
             self._coordinate(t)
@@ -153,13 +166,16 @@ class CcpComm:
         return (self.recovering is None and not self.orphans
                 and all(j in self.searched for j in self.alive))
 
-    def _coordinate(self, t: int) -> None:
+    def _coordinate(self, t: int, final: bool = False) -> None:
         survivors = self.alive
         for i in [i for i in self.unscheduled if self.objects[i].required > len(survivors)]:
             # Fewer robots survive than this object needs: it cannot be moved any more.
             self.unscheduled.discard(i)
             self.impossible.add(i)
         if not self.unscheduled:
+            return
+        if self.policy.centralised:
+            self._hand_to_coordinator(t, final)
             return
         self.state = CommState.COORDINATING
         cost, loc = self.costs(t)
@@ -180,6 +196,50 @@ class CcpComm:
         mine = tuple(int(x) for x in result.selections[:, survivors.index(self.me)])
         self._outbox.append(Selection(self.me, t, self.coordinations, mine))
         self.state = CommState.LISTENING
+
+    # ------------------------------------------------------------------ coordinator organisation
+
+    @property
+    def coordinator(self) -> int:
+        return self.alive[0]
+
+    def _hand_to_coordinator(self, t: int, final: bool) -> None:
+        """Everyone sets the batch aside; the coordinator schedules it for steps from t+2 on
+        (its update is read in step t+1) and queues the update."""
+        batch = sorted(self.unscheduled)
+        self.unscheduled.clear()
+        self.awaiting.update(batch)
+        self.closing = self.closing or final
+        if self.me != self.coordinator:
+            return
+        cost, loc = self.costs(t + 1)
+        periods = self.team.speed_periods
+        result = coordinate(self.alive, cost, loc, [self.objects[i] for i in batch], periods)
+        entries = tuple(ScheduledObject(a.object, a.agents, a.start, a.finish) for a in result.schedule)
+        self._outbox.append(ScheduleUpdate(self.me, t, self.coordinations + 1, entries, final))
+
+    def _adopt(self, t: int, msg: ScheduleUpdate) -> None:
+        if msg.sender != self.coordinator or msg.coordination != self.coordinations + 1:
+            self.warnings.append(f"agent {msg.sender}: schedule update {msg.coordination} is not the "
+                                 f"coordinator's next one; ignored")
+            return
+        for e in msg.assignments:
+            if e.object not in self.awaiting:
+                self.warnings.append(f"agent {msg.sender}: schedule update {msg.coordination} has "
+                                     f"object {e.object}, which was not set aside; ignored")
+                return
+        for e in msg.assignments:
+            a = Assignment(e.object, tuple(e.agents), e.start, e.finish)
+            members = [self.team.index(j) for j in a.agents]
+            self.free_at[members] = a.finish
+            self.free_loc[members] = self.objects[a.object].destination
+            self.schedule.append(a)
+            self.awaiting.discard(a.object)
+        self.coordinations += 1
+        if msg.final:
+            self.closing = False
+            self.state = CommState.CLOSED
+            self.predicted_makespan = self._predict_makespan(t)
 
     def _predict_makespan(self, t: int) -> int:
         cost, loc = self.costs(t)

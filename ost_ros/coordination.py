@@ -172,6 +172,9 @@ def order_groups(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Se
 # ----------------------------------------------------------------------------- triggers
 
 
+ORGANISATIONS = ("distributed", "coordinator")
+
+
 @dataclass(frozen=True)
 class CoordinationPolicy:
     """When to coordinate (paper §3.1). One trigger is active; the end of the whole search
@@ -185,8 +188,15 @@ class CoordinationPolicy:
     ci: int = 1
     interval: int | None = None
     area_fraction: float | None = None
+    # Who runs Algorithm Coordination (paper §3): every agent on shared knowledge
+    # (``distributed``, CCP's point), or the lowest-id agent alone, which broadcasts the schedule
+    # (``coordinator``: one step later, so schedules then start a step later too).
+    organisation: str = "distributed"
 
     def __post_init__(self) -> None:
+        if self.organisation not in ORGANISATIONS:
+            raise ValueError(f"organisation must be one of {', '.join(ORGANISATIONS)}, got "
+                             f"{self.organisation!r}")
         if self.ci < 1:
             raise ValueError(f"CI must be at least 1, got {self.ci}")
         if self.interval is not None and self.interval < 1:
@@ -199,10 +209,16 @@ class CoordinationPolicy:
     @property
     def name(self) -> str:
         if self.interval is not None:
-            return f"interval={self.interval}"
-        if self.area_fraction is not None:
-            return f"area={self.area_fraction:g}"
-        return f"CI={self.ci}"
+            name = f"interval={self.interval}"
+        elif self.area_fraction is not None:
+            name = f"area={self.area_fraction:g}"
+        else:
+            name = f"CI={self.ci}"
+        return name if self.organisation == "distributed" else f"{name}, coordinator"
+
+    @property
+    def centralised(self) -> bool:
+        return self.organisation == "coordinator"
 
     def due(self, t: int, unscheduled: int, searched_before: float, searched_now: float) -> bool:
         """Whether a coordination point is reached in step ``t`` (before the final one).

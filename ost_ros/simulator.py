@@ -80,6 +80,13 @@ def simulate(scenario: Scenario, protocol: str = "ccp", policy: CoordinationPoli
     """
     policy = policy or CoordinationPolicy()
     failures = check_failures(scenario, protocol, failures)
+    if policy.centralised:
+        if protocol == "ncp":
+            raise ValueError("the coordinator organisation is for ccp (ncp negotiates)")
+        if failures:
+            raise ValueError("robot failures: the coordinator organisation does not recover from "
+                             "them (distributed does)")
+        engine = "step" if engine in ("auto", "step") else _not_for_coordinator(engine)
     if failures:
         engine = "step" if engine in ("auto", "step") else _no_event_engine(engine)
     if choose_engine(scenario, engine) == "event":
@@ -108,6 +115,10 @@ def simulate(scenario: Scenario, protocol: str = "ccp", policy: CoordinationPoli
         if on_step is not None:
             on_step(world, actions)
     return finish_result(world, agents, protocol, policy, messages)
+
+
+def _not_for_coordinator(engine: str) -> str:
+    raise ValueError(f"the coordinator organisation runs on the step engine, not {engine!r}")
 
 
 def _no_event_engine(engine: str) -> str:

@@ -12,7 +12,7 @@ from ost_ros import validate as v
 from ost_ros.commands.args import (failure, fraction, leaf, load_scenario_arg, natural, period_list,
                                    positive)
 from ost_ros.errors import UsageError
-from ost_ros.coordination import CoordinationPolicy, coordinate
+from ost_ros.coordination import ORGANISATIONS, CoordinationPolicy, coordinate
 from ost_ros.model import DEFAULT_HEIGHT, DEFAULT_NMAX, DEFAULT_WIDTH, Grid, ObjectSpec
 from ost_ros.scenario import ScenarioError, build_scenario, dump_scenario, generate_scenario
 from ost_ros.bounds import lower_bound
@@ -60,6 +60,9 @@ def register(sub) -> None:
     p.add_argument("--agents", type=positive,
                    help="replace the scenario's team by N agents (default partition and bases)")
     p.add_argument("--max-steps", type=positive, help="stop after this many steps")
+    p.add_argument("--coordination", choices=ORGANISATIONS, default="distributed",
+                   help="who runs Algorithm Coordination: every agent (distributed, default) or "
+                        "the lowest-id agent, which broadcasts the schedule (coordinator; ccp)")
     p.add_argument("--partition", choices=("equal", "negotiated"), default="equal",
                    help="search areas: the paper's equal m×n partition, or negotiated among the "
                         "robots by speed and private forbidden zones (ost negotiate partition)")
@@ -118,7 +121,10 @@ def cmd_sim(args: argparse.Namespace) -> int:
         raise UsageError(f"--ncp-delta must be below 1, got {args.ncp_delta:g}")
     ncp = NegotiationSettings(delta=args.ncp_delta, timeout_rounds=args.ncp_timeout)
     scenario = load_scenario_arg(args.scenario, args.agents)
-    policy = CoordinationPolicy(ci=args.ci, interval=args.interval, area_fraction=args.area_fraction)
+    policy = CoordinationPolicy(ci=args.ci, interval=args.interval, area_fraction=args.area_fraction,
+                                organisation=args.coordination)
+    if policy.centralised and args.protocol != "ccp":
+        raise UsageError(f"--coordination coordinator: for ccp only (not {args.protocol})")
     if args.partition == "negotiated":
         if args.protocol == "hcp":
             raise UsageError("--partition negotiated: HCP owns objects by the equal partition's "
@@ -166,6 +172,12 @@ def cmd_sim(args: argparse.Namespace) -> int:
         bar.close()
         bar = None
         hooks = [h for h in hooks if h is not progress]
+    if policy.centralised:
+        if args.engine == "event":
+            raise UsageError("--coordination coordinator runs on the step engine (--engine step)")
+        if args.fail:
+            raise UsageError("--fail: the coordinator organisation does not recover from failures")
+        engine = "step"
     failures = dict(args.fail)
     if len(failures) != len(args.fail):
         raise UsageError("--fail: an agent can fail only once")

@@ -186,3 +186,13 @@ def test_faults_report_quick(tmp_path):
     assert out.read_text().startswith("# Fault report")
     rows = json.loads(ost("faults", "report", "--quick", "--json").stdout)
     assert rows[0]["fault"] == "none" and rows[0]["overhead vs fault-free"] == "+0.0%"
+
+
+def test_sim_coordinator_organisation(scenario):
+    r = ost("sim", scenario, "--json", "--coordination", "coordinator")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["trigger"] == "CI=1, coordinator"
+    for args, text in [(["--protocol", "hcp"], "for ccp only"), (["--engine", "event"], "step engine"),
+                       (["--fail", "1:3"], "does not recover")]:
+        bad = ost("sim", scenario, "--coordination", "coordinator", *args)
+        assert bad.returncode == 2 and text in bad.stderr, bad.stderr
