@@ -116,8 +116,8 @@ class WorldNode(Node):
             for i in self.ids:
                 events = SubscriptionEventCallbacks(liveliness=lambda info, i=i: self.on_liveliness(i, info))
                 self.sub_alive[i] = self.create_subscription(
-                    String, tp.alive_topic(i), lambda _msg: None, tp.alive_qos(p["failure_timeout"]),
-                    event_callbacks=events)
+                    String, tp.alive_topic(i), lambda _msg, i=i: self.on_alive_sample(i),
+                    tp.alive_qos(p["failure_timeout"]), event_callbacks=events)
         self.timer = self.create_timer(0.1, self.on_timer)
         self.publish_state(self.rt.world.t)
         if self.resumed:
@@ -181,9 +181,15 @@ class WorldNode(Node):
     def try_start(self) -> None:
         if self.started or (len(self.ready) < len(self.ids) and not self.resumed):
             return
-        if any(self.pub_tick[i].get_subscription_count() < 1 for i in self.rt.live) \
-                or self.sub_acted.get_publisher_count() < len(self.rt.live) \
-                or (self.sub_alive and not self.alive_seen >= set(self.rt.live)):
+        ticks = [i for i in self.rt.live if self.pub_tick[i].get_subscription_count() < 1]
+        writers = self.sub_acted.get_publisher_count()
+        unseen = sorted(set(self.rt.live) - self.alive_seen) if self.sub_alive else []
+        if ticks or writers < len(self.rt.live) or unseen:
+            if time.monotonic() - self.stall_since > STALL_S:   # say what discovery lacks
+                self.throttle.note(("start", "world"),
+                                   f"not starting yet: tick readers unmatched {ticks[:8]}, action "
+                                   f"writers {writers}/{len(self.rt.live)}, liveliness not seen "
+                                   f"from {unseen[:8]}")
             return  # the timer tries again
         if self.resumed:
             # The agents are mid-run: publish the checkpointed step again (resend does it).
@@ -303,6 +309,13 @@ class WorldNode(Node):
             return
         if agent not in self.rt.failed:
             self.suspects.setdefault(agent, time.monotonic())
+
+    def on_alive_sample(self, agent: int) -> None:
+        """The agent's one sample on its alive topic: it is alive (with 50 agents some
+        liveliness-changed events never fired at the start; the sample always arrives)."""
+        self.alive_seen.add(agent)
+        self.heard_from(agent)
+        self.try_start()
 
     def heard_from(self, agent: int) -> None:
         """A message from a suspect: it is alive after all."""
