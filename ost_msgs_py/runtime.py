@@ -26,7 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from ost_msgs_py.messages import Action, ActionKind, Cell, Observation
+from ost_msgs_py.messages import Action, ActionKind, Cell, Observation, ScheduledObject
 
 RUNTIME_VERSION = 1
 
@@ -159,14 +159,9 @@ class RunEnd:
     version: int = RUNTIME_VERSION
 
 
-@dataclass(frozen=True)
-class ScheduleEntry:
-    """One planned object of the global schedule (mirror of ``ost_ros.coordination.Assignment``)."""
-
-    object: int
-    agents: tuple[int, ...]
-    start: int
-    finish: int
+# One planned object of the global schedule (mirror of ``ost_ros.coordination.Assignment``):
+# the same record a coordinator's ScheduleUpdate carries.
+ScheduleEntry = ScheduledObject
 
 
 @dataclass(frozen=True)
