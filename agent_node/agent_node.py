@@ -161,7 +161,10 @@ class AgentRunner:
             if self.matched():
                 # One sample asserts this robot's liveliness at once (the world waits for it)
                 self.pub_alive.publish(String(data=f"agent {self.rt.me}"))
-                self.pub_ready.publish(tp.to_string(Ready(self.rt.me, self.protocol, self.fingerprint)))
+                organisation = getattr(getattr(self.rt.agent.comm, "policy", None), "organisation",
+                                       "distributed")
+                self.pub_ready.publish(tp.to_string(Ready(self.rt.me, self.protocol, self.fingerprint,
+                                                          organisation)))
                 self.ready_sent = True
                 self.world_seen = True
                 self.node.get_logger().info(f"ready: {self.n} agents and the world matched")

@@ -166,7 +166,7 @@ class AgentRuntime:
         return all(p == self.me or self._has(p) for p in peers)
 
     def _finish_step(self, peers: tuple[int, ...], until: int,
-                     failed: tuple[tuple[int, int], ...] = ()) -> None:
+                     failed: tuple[AgentLost, ...] = ()) -> None:
         """Comm module for ``self.last``, then replay the skipped steps up to ``until`` - 1."""
         if self.last >= 0:
             have = self._batches.pop(self.last, {})
@@ -183,7 +183,7 @@ class AgentRuntime:
                     for channel in ("negotiation", "step"):
                         if channel in parts:
                             inbox.extend(parts[channel].messages)
-            inbox.extend(AgentLost(a, f) for a, f in failed if f == self.last)
+            inbox.extend(m for m in failed if m.t == self.last)
             self._learn(inbox)
             self.agent.communicate(self.last, inbox)
         # Plan about twice as far as the world last skipped: long quiet stretches get long plans,

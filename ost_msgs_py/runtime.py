@@ -26,7 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from ost_msgs_py.messages import Action, ActionKind, Cell, Observation, ScheduledObject
+from ost_msgs_py.messages import Action, ActionKind, AgentLost, Cell, Observation, ScheduledObject
 
 RUNTIME_VERSION = 1
 
@@ -47,6 +47,7 @@ class Ready:
     agent: int
     protocol: str
     scenario: str               # fingerprint of the scenario the agent loaded (must match the world's)
+    organisation: str = "distributed"   # who coordinates (CCP): decides whether failures recover
     version: int = RUNTIME_VERSION
 
 
@@ -54,9 +55,9 @@ class Ready:
 class Tick:
     """World → agent: observe and act for step ``t``.
 
-    ``failed``: every agent the world has declared failed, with the step it failed in (it sent
-    no action for that step). The agent adds an :class:`~ost_msgs_py.messages.AgentLost` for a
-    failure in step ``last`` to that step's inbox, after the peers' messages (as the simulator).
+    ``failed``: the world's notice (:class:`~ost_msgs_py.messages.AgentLost`) of every agent it
+    has declared failed (it sent no action for the notice's step). The agent adds the notices of
+    step ``last`` to that step's inbox, after the peers' messages (as the simulator).
 
     ``peers``: the agents that broadcast protocol messages in step ``last`` (the previous step the
     agent acted on itself); the agent first runs its comm module for ``last`` with exactly those
@@ -70,7 +71,7 @@ class Tick:
     observation: Observation
     peers: tuple[int, ...] = ()
     run: str = ""                          # the world's run id (strays of other runs are dropped)
-    failed: tuple[tuple[int, int], ...] = ()   # (agent, step it failed in), every failure so far
+    failed: tuple[AgentLost, ...] = ()   # every failure so far (the world's notices)
     version: int = RUNTIME_VERSION
 
 
@@ -155,7 +156,7 @@ class RunEnd:
     completed: bool
     peers: tuple[int, ...] = ()
     run: str = ""                          # the world's run id (strays of other runs are dropped)
-    failed: tuple[tuple[int, int], ...] = ()   # as in Tick
+    failed: tuple[AgentLost, ...] = ()   # as in Tick
     version: int = RUNTIME_VERSION
 
 

@@ -213,8 +213,10 @@ class CcpComm:
         if self.me != self.coordinator:
             return
         cost, loc = self.costs(t + 1)
+        idx = [self.team.index(j) for j in self.alive]
         periods = self.team.speed_periods
-        result = coordinate(self.alive, cost, loc, [self.objects[i] for i in batch], periods)
+        result = coordinate(self.alive, cost[idx], loc[idx], [self.objects[i] for i in batch],
+                            None if periods is None else [periods[k] for k in idx])
         entries = tuple(ScheduledObject(a.object, a.agents, a.start, a.finish) for a in result.schedule)
         self._outbox.append(ScheduleUpdate(self.me, t, self.coordinations + 1, entries, final))
 
@@ -300,6 +302,11 @@ class CcpComm:
             else:
                 kept.append(a)
         self.schedule[:] = kept
+        # coordinator organisation: an update that may never come (the coordinator may be the
+        # one that died) — its objects go back into the pool; the new coordinator re-plans them
+        self.unscheduled |= self.awaiting
+        self.awaiting.clear()
+        self.closing = False
         self.predicted_makespan = None   # made with the dead agent; predicted anew at the close
         self.recovering = t
         self.statuses.clear()

@@ -1,5 +1,5 @@
-"""Fault study (``ost faults report``): robot failures run in-process against the fault-free
-run of the same scenario — objects delivered, makespan, overhead.
+"""Fault study (``ost faults report``): robot failures run in-process (CCP and HCP) against the
+fault-free run of the same scenario — objects delivered, makespan, overhead.
 
 A fault is a set of robots failing at a share of the fault-free makespan (the robots are picked
 by a seeded draw). The DDS rows (``--dds``: a real SIGKILL, a lossy network) are added by the
@@ -80,15 +80,19 @@ def row_of(name: str, fault: str, result: RunResult, baseline: int | None, note:
     return FaultRow(name, fault, delivered, len(result.objects), result.makespan, baseline, note)
 
 
-def in_process_rows(quick: bool = False, seed: int = 1, progress=None) -> list[FaultRow]:
+def in_process_rows(quick: bool = False, seed: int = 1, progress=None,
+                    protocols: tuple[str, ...] = ("ccp", "hcp")) -> list[FaultRow]:
     rows: list[FaultRow] = []
     policy = CoordinationPolicy(ci=1)
-    for name, scenario in study_scenarios(quick):
-        base = simulate(scenario, "ccp", policy, engine="step")
+    runs = [(label, scenario, protocol) for label, scenario in study_scenarios(quick)
+            for protocol in protocols]
+    for label, scenario, protocol in runs:
+        name = f"{protocol.upper()}: {label}"
+        base = simulate(scenario, protocol, policy, engine="auto")
         rows.append(row_of(name, "none", base, base.makespan))
         for case in cases_for(scenario):
             failures = case.failures(scenario, base.makespan, seed)
-            r = simulate(scenario, "ccp", policy, failures=failures)
+            r = simulate(scenario, protocol, policy, failures=failures)
             note = f"agents {sorted(failures)} at step {next(iter(failures.values()))}"
             if not r.completed and r.error:
                 note += f"; {r.error.split(': ', 1)[0]} (too few survivors)"

@@ -24,6 +24,13 @@ order; the requester's :class:`HelpAccept` is cross-checked, never obeyed blindl
 Termination: an agent broadcasts :class:`SearchDone` when its part is done (subarea swept and
 every own object delivered); an agent returns to base once every part is done.
 
+Failures (the world's :class:`AgentLost`, docs/interpretation.md "Robot failures"): every
+survivor drops the dead agent's requests and offers; a group with it breaks — its requester, if
+alive, fetches the object where it now lies and asks again, its helpers go back to their work;
+unless the dead agent's part was done, it goes to its heir, the lowest-id survivor: its whole
+subarea, swept again (its finds died with it), and the objects it was holding, where the world
+says they fell (``AgentLost.dropped``).
+
 Same per-step interface as :class:`~ost_ros.agent.CcpAgent`: ``act(obs)``, ``outbox()``,
 ``communicate(t, messages)``.
 """
@@ -33,11 +40,13 @@ import heapq
 from dataclasses import dataclass, field
 from enum import Enum
 
-from ost_msgs_py.messages import (Action, ActionKind, HelpAccept, HelpOffer, HelpRelease,
+from dataclasses import replace
+
+from ost_msgs_py.messages import (Action, ActionKind, AgentLost, HelpAccept, HelpOffer, HelpRelease,
                                   HelpRequest, Observation, ObjectInfo, SearchDone)
 from ost_ros.model import Cell, manhattan
 from ost_ros.motion import step_toward
-from ost_ros.search import SearchModule
+from ost_ros.search import SearchModule, route, sweep_waypoints
 from ost_ros.team import TeamInfo
 
 
@@ -86,9 +95,44 @@ class HcpComm:
     schedule: list = field(default_factory=list)
     predicted_makespan: int | None = None
     coordinations: int = 0
+    # Failures: dead agent -> step; who requested each object; groups broken by a death;
+    # dead agent -> its heir (when it left a part to do).
+    lost: dict[int, int] = field(default_factory=dict)
+    requester: dict[int, int] = field(default_factory=dict)
+    broken: list[tuple[int, HelpGroup]] = field(default_factory=list)   # (dead agent, group)
+    inherited: dict[int, tuple[int, tuple[int, ...]]] = field(default_factory=dict)   # -> (heir, parts)
+    fallen: dict[int, ObjectInfo] = field(default_factory=dict)   # object -> where it was dropped
 
     def __post_init__(self) -> None:
         self._ids = frozenset(self.team.agent_ids)
+        # whose subareas each agent owns: its own, then those it inherited
+        self.parts: dict[int, list[int]] = {j: [j] for j in self.team.agent_ids}
+
+    @property
+    def alive(self) -> tuple[int, ...]:
+        return tuple(j for j in self.team.agent_ids if j not in self.lost)
+
+    def _lose(self, agent: int, t: int) -> None:
+        if agent not in self._ids:
+            return
+        self.lost[agent] = t
+        self._ids = self._ids - {agent}
+        for obj in [o for o, r in self.open.items() if r == agent]:
+            self._close(obj)                       # its request: nobody asks for it any more
+        obj = self.offered_to.pop(agent, None)      # its standing offer lapses
+        if obj is not None:
+            self.offers.get(obj, {}).pop(agent, None)
+        latest: dict[int, HelpGroup] = {}
+        for g in self.groups:
+            latest[g.object] = g
+        self.broken.extend((agent, g) for g in latest.values() if agent in g.agents)
+        parts = tuple(self.parts.pop(agent, [agent]))
+        if agent not in self.done_parts and self.alive:
+            heir = self.alive[0]                   # the lowest-id survivor takes its parts
+            self.inherited[agent] = (heir, parts)
+            self.parts[heir].extend(parts)
+            self.done_parts.discard(heir)
+        self.done_parts.discard(agent)
 
     def _close(self, obj: int) -> None:
         self.open.pop(obj, None)
@@ -109,6 +153,7 @@ class HcpComm:
         for msg in _ordered(by_kind.get(HelpRequest, ()), lambda m: m.object.id):
             if msg.sender in ids and msg.object.id not in self.open and msg.object.required > 1:
                 self.open[msg.object.id] = msg.sender
+                self.requester[msg.object.id] = msg.sender
                 self.objects[msg.object.id] = msg.object
                 self.offers[msg.object.id] = {}
         for msg in _ordered(by_kind.get(HelpOffer, ()), lambda m: (m.object, m.sender)):
@@ -116,6 +161,10 @@ class HcpComm:
                     and self.open[msg.object] != msg.sender):
                 self.offers[msg.object][msg.sender] = msg.arrival
                 self.offered_to[msg.sender] = msg.object
+        for msg in _ordered(by_kind.get(AgentLost, ()), lambda m: m.agent):
+            for o in msg.dropped:   # where a dead robot's load lies (sensing gives its origin)
+                self.fallen[o.id] = o
+            self._lose(msg.agent, msg.t)
         for msg in by_kind.get(HelpAccept, ()):
             self._check_accept(msg)
         for msg in by_kind.get(SearchDone, ()):
@@ -156,7 +205,7 @@ class HcpComm:
 
     @property
     def closed(self) -> bool:
-        return len(self.done_parts) == self.team.size
+        return all(j in self.done_parts for j in self.alive)
 
 
 _AVAILABLE = frozenset((HcpState.SEARCHING, HcpState.RESUMING, HcpState.DECISION,
@@ -198,6 +247,10 @@ class HcpAgent:
         self.part_done_sent = False
         self._outbox: list = []
         self._obs: Observation | None = None
+        self.areas = [self.area]              # subareas whose objects it owns (+ inherited)
+        self.sweeps_left: list = []           # inherited subareas still to sweep
+        self.claimed: set[int] = set()        # objects it has taken as its own
+        self.unsure: set[int] = set()         # inherited objects that may be delivered already
 
     # ------------------------------------------------------------------ step, part 1: act
 
@@ -211,12 +264,19 @@ class HcpAgent:
 
     def _sense(self, obs: Observation) -> None:
         for o in obs.sensed:
-            if self.area.contains(o.location) and o.id not in self.comm.objects:
-                self.comm.objects[o.id] = o
-                self.comm.found_at[o.id] = obs.t
-                heapq.heappush(self.own, o.id)
+            if any(a.contains(o.location) for a in self.areas) and o.id not in self.claimed:
+                self._claim(self.comm.fallen.get(o.id, o), obs.t)
         if self.search.at_end(self.position):
-            self.sweep_done = True
+            if self.sweeps_left:   # on to an inherited subarea (walking there, sensing)
+                self.search = SearchModule(route([self.position] + self.sweeps_left.pop(0)))
+            else:
+                self.sweep_done = True
+
+    def _claim(self, o: ObjectInfo, t: int) -> None:
+        self.comm.objects[o.id] = o
+        self.comm.found_at.setdefault(o.id, t)
+        self.claimed.add(o.id)
+        heapq.heappush(self.own, o.id)
 
     def _own_next(self) -> int | None:
         """Id of the own object this agent would handle next (the one in hand first)."""
@@ -263,6 +323,8 @@ class HcpAgent:
             if s is HcpState.DECISION:
                 if self.offering is not None:
                     return ActionKind.WAIT, (0, 0), -1
+                while self.own and self.comm.objects[self.own[0]].required > len(self.comm.alive):
+                    heapq.heappop(self.own)           # too few robots survive to move it
                 if self.own:
                     self.current = self.comm.objects[heapq.heappop(self.own)]
                     self.helping = False
@@ -293,6 +355,12 @@ class HcpAgent:
                 target = self.current.location
                 if self.position != target:
                     return ActionKind.MOVE, step_toward(self.position, target), -1
+                if self.current.id in self.unsure:   # inherited: is it still here?
+                    self.unsure.discard(self.current.id)
+                    if all(o.id != self.current.id for o in self._obs.sensed):
+                        self.current = None          # delivered before its owner died
+                        self.state = HcpState.DECISION
+                        continue
                 if self.offering is not None:
                     return ActionKind.WAIT, (0, 0), -1
                 if self.current.required == 1:
@@ -333,7 +401,23 @@ class HcpAgent:
         return out
 
     def communicate(self, t: int, messages: list) -> None:
+        before = len(self.comm.broken)
         formed = self.comm.receive(t, messages)
+        for dead, g in self.comm.broken[before:]:
+            self._group_broken(t, dead, g)
+        for m in messages:
+            heir, parts = self.comm.inherited.get(getattr(m, "agent", None), (None, ()))
+            if isinstance(m, AgentLost) and heir == self.id:
+                self._inherit(m, parts, t)
+        if self.state in (HcpState.RETURNING, HcpState.FINISH) and not self.comm.closed:
+            self.state = HcpState.DECISION   # a failure left work: available again
+        if (self.comm.lost and self.current is not None and not self.helping
+                and self.state in (HcpState.FETCHING, HcpState.REQUESTING)
+                and self.current.required > len(self.comm.alive)):
+            if self.state is HcpState.REQUESTING:   # nobody left to come: withdraw, give it up
+                self._outbox.append(HelpRelease(self.id, t, self.current.id))
+            self.current = None
+            self.state = HcpState.DECISION
         for g in formed:
             if self.current is not None and not self.helping and g.object == self.current.id:
                 # My request is staffed: hold the object until the partners have arrived.
@@ -348,6 +432,44 @@ class HcpAgent:
                 self.state = HcpState.HELPING
         if self.offering is not None and self.comm.offered_to.get(self.id) != self.offering:
             self.offering = None   # answered (chosen or not), lapsed, or never registered
+
+    # ------------------------------------------------------------------ failures
+
+    def _group_broken(self, t: int, dead: int, g: HelpGroup) -> None:
+        """A member of ``g`` failed: its requester, if alive, fetches the object where it lies
+        and asks again; everyone else in it goes back to its own work."""
+        if self.id not in g.agents or self.current is None or self.current.id != g.object:
+            return
+        if self.comm.requester.get(g.object) == self.id and not self.helping:
+            if self.state is HcpState.MOVING:   # carried part of the way: it lies here now
+                self.current = replace(self.current, location=tuple(self.position))
+                self.comm.objects[g.object] = self.current
+            self.state = HcpState.FETCHING
+            return
+        self.current = None
+        self.helping = False
+        self.state = HcpState.DECISION
+
+    def _inherit(self, lost: AgentLost, parts: tuple[int, ...], t: int) -> None:
+        """The dead agent's parts are mine: its subareas (its own and what it had inherited,
+        swept again: its finds died with it) and what it was holding, where it fell."""
+        for owner in parts:
+            area = self.team.areas[self.team.index(owner)]
+            self.areas.append(area)
+            self.sweeps_left.append(sweep_waypoints(area))
+        if self.sweep_done:
+            self.search = SearchModule(route([self.position] + self.sweeps_left.pop(0)))
+            self.sweep_done = False
+        self.part_done_sent = False
+        for o in lost.dropped:   # its own (requested by it, or carried alone), not a partner's
+            if self.comm.requester.get(o.id, lost.agent) == lost.agent:
+                self._claim(o, t)
+        for oid, req in sorted(self.comm.requester.items()):
+            # objects it (or a robot it inherited from) asked help for: maybe delivered already,
+            # so looked at on arrival (``unsure``); where it lies: its last notice or request
+            if req in parts and oid not in self.claimed:
+                self._claim(self.comm.fallen.get(oid, self.comm.objects[oid]), t)
+                self.unsure.add(oid)
 
     # ------------------------------------------------------------------ event engine
 

@@ -23,6 +23,7 @@ from ost_ros.team import TeamInfo
 from ost_ros.world import World
 
 PROTOCOLS = ("ccp", "hcp", "ncp")
+RECOVERING = ("ccp", "hcp")   # protocols that re-plan after a robot failure
 ENGINES = ("step", "event")
 
 
@@ -85,7 +86,7 @@ def simulate(scenario: Scenario, protocol: str = "ccp", policy: CoordinationPoli
             raise ValueError("the coordinator organisation is for ccp (ncp negotiates)")
         if failures:
             raise ValueError("robot failures: the coordinator organisation does not recover from "
-                             "them (distributed does)")
+                             "them (the distributed one does)")
         engine = "step" if engine in ("auto", "step") else _not_for_coordinator(engine)
     if failures:
         engine = "step" if engine in ("auto", "step") else _no_event_engine(engine)
@@ -108,7 +109,7 @@ def simulate(scenario: Scenario, protocol: str = "ccp", policy: CoordinationPoli
         messages += len(inbox)
         for a in lost:
             world.fail(a)
-        inbox += [AgentLost(a, t) for a in lost]
+        inbox += [AgentLost(a, t, world.dropped_by(a)) for a in lost]
         for ag in live:
             ag.communicate(t, inbox)
         world.apply(actions)
@@ -136,8 +137,9 @@ def check_failures(scenario: Scenario, protocol: str, failures: dict[int, int] |
             raise ValueError(f"failure of agent {a}: no such agent (team {sorted(ids)})")
         if not isinstance(t, int) or t < 0:
             raise ValueError(f"failure of agent {a}: step {t!r} must be a non-negative integer")
-    if protocol != "ccp":
-        raise ValueError(f"robot failures: protocol {protocol} does not recover from them yet (ccp does)")
+    if protocol not in RECOVERING:
+        raise ValueError(f"robot failures: protocol {protocol} does not recover from them (ccp and "
+                         "hcp do)")
     return failures
 
 

@@ -52,6 +52,7 @@ class World:
         for o in self.objects.values():
             self._at[o.at].add(o.spec.id)
         self.records: dict[int, AgentRecord] = {a.id: AgentRecord(a.id) for a in self.scenario.agents}
+        self.carrying: dict[int, int] = {}   # agent -> object its last action carried (or held)
 
     # ------------------------------------------------------------------ sensing
 
@@ -83,6 +84,10 @@ class World:
                 self._reject(act, "second action in one step")
                 continue
             acted.add(act.agent)
+            if act.kind is ActionKind.CARRY:
+                self.carrying[act.agent] = act.object
+            else:
+                self.carrying.pop(act.agent, None)
             if act.t != self.t:
                 self._reject(act, f"stamped for step {act.t}, world is at step {self.t}")
                 continue
@@ -169,6 +174,17 @@ class World:
         """Agent ``agent_id`` fails now (step ``t``): it does not act in this step or later."""
         if agent_id in self.records and agent_id not in self.failed:
             self.failed[agent_id] = self.t
+
+    def dropped_by(self, agent_id: int) -> tuple:
+        """What a failing agent was holding (its last action carried it, it stands on it):
+        the object's info at the cell where it now lies."""
+        from dataclasses import replace
+
+        oid = self.carrying.get(agent_id)
+        o = self.objects.get(oid) if oid is not None else None
+        if o is None or o.delivered is not None or o.at != self.positions[agent_id]:
+            return ()
+        return (replace(o.spec, location=o.at),)
 
     @property
     def survivors(self) -> int:

@@ -20,12 +20,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ost_msgs_py.messages import Action, Observation
+from ost_msgs_py.messages import Action, AgentLost, Observation
 from ost_msgs_py.runtime import ProtocolViolation, Acted, AgentReport, PlanStep, RunEnd, Tick
 from ost_ros.coordination import Assignment
 from ost_ros.model import Scenario
 from ost_ros.result import RunResult
-from ost_ros.simulator import step_limit
+from ost_ros.simulator import RECOVERING, step_limit
 from ost_ros.world import World
 
 
@@ -47,6 +47,7 @@ class WorldRuntime:
     protocol: str = "ccp"        # the agents' protocol: ccp re-coordinates after a failure
     aborted: str | None = None   # why the run was ended early (a failure the protocol cannot take)
     _gone: set[int] = field(default_factory=set)   # lost after the run ended (no report coming)
+    _notices: dict[int, AgentLost] = field(default_factory=dict)   # what every later tick says
 
     def __post_init__(self) -> None:
         self.world = World(self.scenario)
@@ -68,19 +69,20 @@ class WorldRuntime:
             self._gone.add(agent)   # the run is over: it just will not report
             return None
         self.failed[agent] = self.world.t
+        self._notices[agent] = AgentLost(agent, self.world.t, self.world.dropped_by(agent))
         self._acted.pop(agent, None)
         self.world.fail(agent)
-        if self.protocol != "ccp":
+        if self.protocol not in RECOVERING:
             self.aborted = (f"agent {agent} failed in step {self.world.t} and this protocol does "
-                            "not recover from failures (ccp does)")
+                            "not recover from failures (ccp and hcp do)")
             self.ended = RunEnd(self.world.t, self.world.t - 1, False, (), self.run, self._failed())
             return self.ended
         self.limit = max(self.limit, step_limit(self.scenario, len(self.failed))) \
             if self.max_steps is None else self.limit
         return self.advance() if self.step_complete else None
 
-    def _failed(self) -> tuple[tuple[int, int], ...]:
-        return tuple(sorted(self.failed.items()))
+    def _failed(self) -> tuple[AgentLost, ...]:
+        return tuple(self._notices[a] for a in sorted(self._notices))
 
     # ------------------------------------------------------------------ stepping
 

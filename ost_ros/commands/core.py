@@ -68,7 +68,7 @@ def register(sub) -> None:
                         "robots by speed and private forbidden zones (ost negotiate partition)")
     p.add_argument("--partition-seed", type=natural, default=0, help="seed of that negotiation (0)")
     p.add_argument("--fail", type=failure, action="append", default=[], metavar="AGENT:STEP",
-                   help="robot AGENT fails in step STEP (repeatable; ccp): survivors re-coordinate")
+                   help="robot AGENT fails in step STEP (repeatable; ccp, hcp): survivors re-plan")
     p.add_argument("--engine", choices=("auto",) + ENGINES, default="auto",
                    help="step: the reference, every agent every step; event: jumps from decision "
                         "to decision, same result (default auto: event for big runs, step when "

@@ -169,7 +169,7 @@ def test_sim_with_a_failing_robot(scenario):
     (["--fail", "9:3"], "no such agent"),
     (["--fail", "1:x"], "expected AGENT:STEP"),
     (["--fail", "1:3", "--fail", "1:5"], "only once"),
-    (["--fail", "1:3", "--protocol", "hcp"], "hcp does not recover"),
+    (["--fail", "1:3", "--protocol", "ncp"], "ncp does not recover"),
     (["--fail", "1:3", "--engine", "event"], "step engine"),
 ])
 def test_sim_bad_failures_are_one_line(scenario, args, text):

@@ -1,7 +1,8 @@
-"""Robot failures in the core (CCP): the recovery arithmetic by hand, a hand-checked run with a
-carrier failing mid-carry, and the promises as properties on random scenarios — with at least
-n_max survivors every object is still delivered, survivors agree, planned = executed after the
-last recovery; with fewer, the run ends saying which objects could not be moved and why."""
+"""Robot failures in the core (CCP and HCP): the recovery arithmetic by hand, a hand-checked run
+with a carrier failing mid-carry, and the promises as properties on random scenarios — with at
+least n_max survivors every object is still delivered, survivors agree, and (CCP) planned =
+executed after the last recovery; with fewer, the run ends saying which objects could not be
+moved and why."""
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -86,8 +87,8 @@ def test_bad_failures_are_refused():
         simulate(s, failures={9: 3})
     with pytest.raises(ValueError, match="non-negative"):
         simulate(s, failures={0: -1})
-    with pytest.raises(ValueError, match="hcp does not recover"):
-        simulate(s, "hcp", failures={0: 3})
+    with pytest.raises(ValueError, match="ncp does not recover"):
+        simulate(s, "ncp", failures={0: 3})
     with pytest.raises(ValueError, match="step engine"):
         simulate(s, failures={0: 3}, engine="event")
 
@@ -104,11 +105,12 @@ def failing_runs(draw):
     return s, policy, {a: draw(st.integers(0, horizon)) for a in dead}
 
 
+@pytest.mark.parametrize("protocol", ["ccp", "hcp"])
 @settings(max_examples=120)
-@given(failing_runs())
-def test_failures_never_lose_an_object_the_survivors_can_carry(run):
+@given(run=failing_runs())
+def test_failures_never_lose_an_object_the_survivors_can_carry(protocol, run):
     s, policy, failures = run
-    r = simulate(s, policy=policy, failures=failures)
+    r = simulate(s, protocol, policy, failures=failures)
     survivors = s.n_agents - len(failures)
     assert not r.rejections and not r.warnings and r.agreement
     for o, spec in zip(r.objects, s.objects):
@@ -118,6 +120,8 @@ def test_failures_never_lose_an_object_the_survivors_can_carry(run):
         if o.delivered is not None:
             assert all(o.delivered <= failures[a] for a in set(o.agents) & set(failures))
     assert r.completed == all(o.delivered is not None for o in r.objects)
+    if protocol == "hcp":   # HCP predicts nothing; its staffing decisions are agreed
+        return
     # planned = executed after the last recovery (none if the run ended before it closed)
     if r.predicted_makespan is not None:
         assert r.predicted_makespan == r.makespan
@@ -137,3 +141,17 @@ def test_failures_in_a_heterogeneous_team(run, periods):
     assert not r.rejections and not r.warnings and r.agreement
     assert all(o.delivered is not None for o, spec in zip(r.objects, s.objects)
                if spec.required <= survivors)
+
+
+def test_hcp_heir_takes_over_a_dead_owner_and_what_it_held():
+    # Robot 2 dies at once: robot 0 (lowest id) inherits its subarea and finds its object there.
+    s = build_scenario(Grid(9, 3), [ObjectSpec(0, (7, 1), (0, 0), 1)], n_agents=3, nmax=1)
+    r = simulate(s, "hcp", failures={2: 0})
+    assert r.completed and r.objects[0].agents == (0,)
+    # Robot 1 dies while helping carry robot 0's object: robot 0 asks again, robot 2 comes.
+    s = two_robot_carry()
+    base = simulate(s, "hcp")
+    g = base.objects[0]
+    dead = next(a for a in g.agents if a != 0) if 0 in g.agents else g.agents[-1]
+    r = simulate(s, "hcp", failures={dead: g.start + 2})
+    assert r.completed and dead not in r.objects[0].agents and not r.warnings

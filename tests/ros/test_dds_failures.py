@@ -1,8 +1,8 @@
 """Robot failures over DDS: an agent process killed with SIGKILL mid-run (by itself at a given
 step, or from outside at an arbitrary moment) is detected by its lost liveliness, declared failed
 in the step the world was at, and the survivors re-coordinate — the result is exactly the
-in-process run with that failure (``ost sim --fail AGENT:STEP``). Too few survivors, or a
-protocol that does not recover (hcp), end the run with a result that says why."""
+in-process run with that failure (``ost sim --fail AGENT:STEP``), for CCP and HCP. Too few
+survivors, or a protocol that does not recover (ncp), end the run with a result that says why."""
 import subprocess
 
 from dds_helpers import kill_mid_run, ost_up, result_json
@@ -68,9 +68,19 @@ def test_too_few_survivors_end_with_what_could_not_be_done(tmp_path):
     assert "need up to 4 robots and 3 survive" in got["error"]
 
 
-def test_hcp_run_with_a_failed_agent_ends_with_the_reason(tmp_path):
+def test_hcp_recovers_from_a_failed_agent_as_in_process(tmp_path):
     scenario, path = scenario_file(tmp_path)
     run = ost_up("--scenario", str(path), "--json", "--protocol", "hcp", "--kill-agent", "3:10",
+                 "--run-dir", str(tmp_path / "run"))
+    assert run.returncode == 0, run.stderr
+    got = result_json(run.stdout)
+    assert got["completed"] and got["failures"][0]["agent"] == 3
+    assert got == in_process(scenario, got, "hcp")
+
+
+def test_ncp_run_with_a_failed_agent_ends_with_the_reason(tmp_path):
+    scenario, path = scenario_file(tmp_path)
+    run = ost_up("--scenario", str(path), "--json", "--protocol", "ncp", "--kill-agent", "3:10",
                  "--run-dir", str(tmp_path / "run"))
     got = result_json(run.stdout)
     assert not got["completed"]

@@ -214,25 +214,27 @@ def test_messages_of_another_run_are_dropped():
         world.accept_acted(dataclasses.replace(acted, run="x"))
 
 
+@pytest.mark.parametrize("protocol", ["ccp", "hcp"])
 @pytest.mark.parametrize("skipping", [False, True])
 @pytest.mark.parametrize("kill", [{1: 0}, {2: 40}, {0: 25, 3: 60}, {5: 120}])
-def test_failed_agents_equal_simulate_with_the_same_failures(kill, skipping):
+def test_failed_agents_equal_simulate_with_the_same_failures(kill, skipping, protocol):
     scenario = generate_scenario(6, 10, 3, Grid(36, 18), 3)
     policy = CoordinationPolicy(ci=2)
-    got, world = run(scenario, "ccp", policy, 64 if skipping else 0, skipping, kill)
+    got, world = run(scenario, protocol, policy, 64 if skipping else 0, skipping, kill)
     failures = {f["agent"]: f["step"] for f in got.failures}
     assert set(failures) == set(kill) and all(failures[a] >= kill[a] for a in kill)
     if not skipping:
         assert failures == kill
-    assert got.to_dict() == simulate(scenario, "ccp", policy, failures=failures).to_dict()
+    assert got.to_dict() == simulate(scenario, protocol, policy, failures=failures).to_dict()
     assert got.completed and got.agreement
 
 
-def test_a_failure_under_hcp_ends_the_run_with_the_reason():
+def test_a_failure_under_ncp_ends_the_run_with_the_reason():
     scenario = generate_scenario(4, 6, 1, Grid(30, 12), 3)
-    world = WorldRuntime(scenario, protocol="hcp")
+    world = WorldRuntime(scenario, protocol="ncp")
     world.start()
     end = world.fail(2)
-    assert isinstance(end, RunEnd) and not end.completed and end.failed == ((2, 0),)
+    assert isinstance(end, RunEnd) and not end.completed
+    assert [(m.agent, m.t) for m in end.failed] == [(2, 0)]
     r = world.result()
     assert not r.completed and "does not recover" in r.error
