@@ -18,12 +18,10 @@ Coordination — for schedules that start a step later — and broadcasts the re
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 
 import numpy as np
-
-from dataclasses import replace
 
 from ost_msgs_py.messages import (AgentLost, ObjectFound, ScheduledObject, ScheduleUpdate, SearchDone,
                                   Selection, Status)

@@ -37,10 +37,8 @@ Same per-step interface as :class:`~ost_ros.agent.CcpAgent`: ``act(obs)``, ``out
 from __future__ import annotations
 
 import heapq
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
-
-from dataclasses import replace
 
 from ost_msgs_py.messages import (Action, ActionKind, AgentLost, HelpAccept, HelpOffer, HelpRelease,
                                   HelpRequest, Observation, ObjectInfo, SearchDone)
