@@ -24,7 +24,7 @@ class FaultCase:
     count: int
     share: float
 
-    def label(self, scenario: Scenario) -> str:
+    def label(self) -> str:
         return f"{self.count} robot{'s fail' if self.count > 1 else ' fails'} at {self.share:.0%} of the run"
 
     def failures(self, scenario: Scenario, makespan: int, seed: int) -> dict[int, int]:
@@ -96,7 +96,7 @@ def in_process_rows(quick: bool = False, seed: int = 1, progress=None,
             note = f"agents {sorted(failures)} at step {next(iter(failures.values()))}"
             if not r.completed and r.error:
                 note += f"; {r.error.split(': ', 1)[0]} (too few survivors)"
-            rows.append(row_of(name, case.label(scenario), r, base.makespan, note))
+            rows.append(row_of(name, case.label(), r, base.makespan, note))
             if progress is not None:
                 progress()
     return rows

@@ -404,9 +404,10 @@ class HcpAgent:
         for dead, g in self.comm.broken[before:]:
             self._group_broken(t, dead, g)
         for m in messages:
-            heir, parts = self.comm.inherited.get(getattr(m, "agent", None), (None, ()))
-            if isinstance(m, AgentLost) and heir == self.id:
-                self._inherit(m, parts, t)
+            if isinstance(m, AgentLost):
+                heir, parts = self.comm.inherited.get(m.agent, (None, ()))
+                if heir == self.id:
+                    self._inherit(m, parts, t)
         if self.state in (HcpState.RETURNING, HcpState.FINISH) and not self.comm.closed:
             self.state = HcpState.DECISION   # a failure left work: available again
         if (self.comm.lost and self.current is not None and not self.helping

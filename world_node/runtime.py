@@ -77,8 +77,8 @@ class WorldRuntime:
                             "not recover from failures (ccp and hcp do)")
             self.ended = RunEnd(self.world.t, self.world.t - 1, False, (), self.run, self._failed())
             return self.ended
-        self.limit = max(self.limit, step_limit(self.scenario, len(self.failed))) \
-            if self.max_steps is None else self.limit
+        if self.max_steps is None:   # survivors may need longer than the fault-free bound
+            self.limit = max(self.limit, step_limit(self.scenario, len(self.failed)))
         return self.advance() if self.step_complete else None
 
     def _failed(self) -> tuple[AgentLost, ...]:
