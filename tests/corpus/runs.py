@@ -1,0 +1,101 @@
+"""The behaviour corpus: ``ost`` commands whose every output byte is recorded.
+
+A refactor must leave each of these outputs unchanged (``tests/test_corpus.py``). The commands
+cover every protocol (CCP under each trigger, HCP, NCP), both engines, the coordinator
+organisation, robot failures, heterogeneous teams, negotiated search areas, the exact optimum,
+Algorithm Coordination alone, the fault report and both papers' reproductions (``--quick``).
+
+Scenario files are written by the corpus's own ``ost generate`` commands (their output is part
+of the corpus), into a scratch folder named by ``{dir}`` in the arguments.
+
+Re-record only when a change of behaviour is intended: ``python tests/corpus/record.py``.
+"""
+from __future__ import annotations
+
+# name -> (size, grid, nmax, periods): the scenarios every run below uses
+SCENARIOS: dict[str, tuple[tuple[int, int, int], tuple[int, int], int, str | None]] = {
+    "small": ((4, 7, 1), (60, 24), 3, None),
+    "mid": ((6, 12, 5), (36, 18), 4, None),
+    "paper": ((10, 20, 1), (500, 200), 10, None),
+    "crowd": ((8, 15, 3), (100, 40), 5, None),
+    "hetero": ((4, 10, 2), (80, 40), 3, "1,1,2,3"),
+}
+
+
+def generate_commands() -> list[tuple[str, list[str]]]:
+    out = []
+    for name, ((n, m, seed), (w, h), nmax, periods) in SCENARIOS.items():
+        argv = ["generate", "--agents", str(n), "--objects", str(m), "--seed", str(seed),
+                "--width", str(w), "--height", str(h), "--nmax", str(nmax)]
+        if periods:
+            argv += ["--periods", periods]
+        out.append((f"generate-{name}", argv + ["-o", "{dir}/" + name + ".yaml"]))
+    return out
+
+
+def sim_commands() -> list[tuple[str, list[str]]]:
+    out: list[tuple[str, list[str]]] = []
+
+    def sim(label: str, scenario: str, *flags: str, engines=("step", "event")) -> None:
+        for engine in engines:
+            out.append((f"sim-{scenario}-{label}-{engine}",
+                        ["sim", "{dir}/" + scenario + ".yaml", *flags, "--engine", engine, "--json"]))
+
+    for sc in ("small", "mid", "paper", "crowd"):
+        sim("ccp-ci1", sc, "--protocol", "ccp", "--ci", "1")
+        sim("ccp-ciM", sc, "--protocol", "ccp", "--ci", "1000")
+        sim("hcp", sc, "--protocol", "hcp")
+        sim("ncp-ci1", sc, "--protocol", "ncp", "--ci", "1")
+    for sc in ("small", "crowd", "hetero"):
+        sim("ccp-interval", sc, "--protocol", "ccp", "--interval", "40")
+        sim("ccp-area", sc, "--protocol", "ccp", "--area-fraction", "0.25")
+        sim("ncp-ci3", sc, "--protocol", "ncp", "--ci", "3", "--ncp-delta", "0.7")
+    sim("ccp-ci1", "hetero", "--protocol", "ccp", "--ci", "1")
+    sim("ccp-ci4", "hetero", "--protocol", "ccp", "--ci", "4")
+    sim("ccp-agents8", "mid", "--protocol", "ccp", "--ci", "2", "--agents", "8")
+    sim("hcp-agents5", "crowd", "--protocol", "hcp", "--agents", "5")
+    for sc in ("small", "crowd", "hetero"):
+        sim("coordinator", sc, "--protocol", "ccp", "--ci", "2", "--coordination", "coordinator",
+            engines=("step",))
+    sim("fail-ccp", "crowd", "--protocol", "ccp", "--fail", "2:40", "--fail", "5:120", engines=("step",))
+    sim("fail-ccp", "hetero", "--protocol", "ccp", "--ci", "2", "--fail", "1:60", engines=("step",))
+    sim("fail-ccp", "paper", "--protocol", "ccp", "--fail", "3:500", engines=("step",))
+    sim("fail-hcp", "crowd", "--protocol", "hcp", "--fail", "2:40", "--fail", "6:150", engines=("step",))
+    sim("fail-hcp", "mid", "--protocol", "hcp", "--fail", "1:20", engines=("step",))
+    sim("negotiated-ccp", "hetero", "--protocol", "ccp", "--partition", "negotiated")
+    sim("negotiated-ncp", "hetero", "--protocol", "ncp", "--partition", "negotiated", engines=("event",))
+    # the text a user reads, not only the JSON
+    out.append(("sim-small-ccp-text", ["sim", "{dir}/small.yaml", "--protocol", "ccp"]))
+    out.append(("sim-crowd-hcp-text", ["sim", "{dir}/crowd.yaml", "--protocol", "hcp"]))
+    return out
+
+
+def other_commands() -> list[tuple[str, list[str]]]:
+    return [
+        ("optimal-small", ["optimal", "{dir}/small.yaml", "--json"]),
+        ("schedule-state", ["schedule", "{dir}/state.json", "--json"]),
+        ("partition-hetero", ["negotiate", "partition", "--scenario", "{dir}/hetero.yaml", "--json"]),
+        ("negotiate-targets", ["negotiate", "run", "--task", "targets", "--robots", "3",
+                               "--targets", "6", "--json"]),
+        ("faults-quick", ["faults", "report", "--quick", "--json"]),
+    ]
+
+
+# A coordination state for ``ost schedule`` (written beside the scenarios).
+STATE = {
+    "agents": [{"id": 0, "cost": 0, "location": [0, 0]}, {"id": 1, "cost": 5, "location": [9, 3]},
+               {"id": 2, "cost": 2, "location": [4, 8]}],
+    "objects": [{"id": 0, "location": [3, 3], "destination": [8, 8], "required": 2},
+                {"id": 1, "location": [7, 1], "destination": [0, 9], "required": 1},
+                {"id": 2, "location": [5, 5], "destination": [5, 0], "required": 3}],
+}
+
+# Directory outputs: every file but pictures; lines with wall times are left out of reports.
+REPRODUCTIONS: list[tuple[str, list[str]]] = [
+    ("reproduce-quick", ["reproduce", "--quick", "--out", "{out}"]),
+    ("negotiate-reproduce-quick", ["negotiate", "reproduce", "--quick", "--out", "{out}"]),
+]
+
+
+def commands() -> list[tuple[str, list[str]]]:
+    return generate_commands() + sim_commands() + other_commands()
