@@ -3,16 +3,17 @@
     agent_node --ros-args -p agent_id:=3 -p scenario:=run.yaml -p ci:=1
 
 Parameters: ``agent_id``, ``scenario`` (YAML file), ``agents`` (team size override, 0 = the
-file's), ``protocol``, ``ci`` / ``interval`` / ``area_fraction`` (the coordination trigger),
-``coordination`` (``distributed``, or ``coordinator``: the lowest-id agent alone coordinates),
-``lookahead`` (quiet steps planned for event skipping; 0 = off); NCP: ``ncp_delta``,
-``ncp_timeout`` (rounds) and ``mute_negotiation_from`` (fault injection: from this step the
+file's), ``protocol`` (a name of the protocol registry, :mod:`ost_ros.protocols`), ``ci`` /
+``interval`` / ``area_fraction`` (the coordination trigger), ``coordination`` (``distributed``, or
+``coordinator``: the lowest-id agent alone coordinates), ``lookahead`` (quiet steps planned for
+event skipping; 0 = off); every protocol's own options (the registry's, e.g. NCP's
+``ncp_delta`` and ``ncp_timeout``); ``mute_negotiation_from`` (fault injection: from this step a
 negotiator sends no moves; -1 = never), ``failure_timeout`` (s, the liveliness lease offered
 on ``/ost/agent_<id>/alive``: the world declares this robot failed once its process has been
 gone that long) and ``die_at_step`` (fault injection: the process SIGKILLs itself on the first
-tick of that step or later; -1 = never). The agent is built by the core's
-factory (``ost_ros.simulator.make_agents``) and runs unchanged: the node only orders its calls
-(:mod:`agent_node.runtime`) and moves messages.
+tick of that step or later; -1 = never). The agent is built by its protocol's factory (the
+registry) and runs unchanged: the node only orders its calls (:mod:`agent_node.runtime`) and
+moves messages.
 """
 from __future__ import annotations
 
@@ -29,10 +30,11 @@ from std_msgs.msg import String
 from agent_node import transport as tp
 from agent_node.runtime import AgentRuntime, ProtocolViolation
 from ost_msgs_py.runtime import Ready, Resend, RunEnd, StepMessages, Tick
+from ost_ros import protocols
 from ost_ros.coordination import ORGANISATIONS, CoordinationPolicy
-from ost_ros.ncp import NegotiationSettings
+from ost_ros.model import Scenario
 from ost_ros.scenario import ScenarioError, load_scenario, with_team
-from ost_ros.simulator import PROTOCOLS, make_agents
+from ost_ros.team import TeamInfo
 
 # Without the world for this long after the start, the agent gives up (it would wait forever).
 WORLD_LOST_S = 10.0
@@ -50,59 +52,60 @@ class AgentNode(Node):
     def __init__(self, name: str = "agent"):
         super().__init__(name, namespace=tp.NAMESPACE)
         declare(self)
-        scenario, runtime = load_agent(self)
-        self.runner = AgentRunner(self, scenario, runtime)
+        scenario, policy, runtime = load_agent(self)
+        self.runner = AgentRunner(self, scenario, policy, runtime)
 
 
-def load_agent(node: Node):
+OPTIONS = [o for spec in protocols.REGISTRY.values() for o in spec.options]
+
+
+def load_agent(node: Node) -> tuple[Scenario, CoordinationPolicy, AgentRuntime]:
     """Read and check the parameters; the runtime around the core agent."""
     p = {name: node.get_parameter(name).value for name in
          ("agent_id", "scenario", "agents", "protocol", "ci", "interval", "area_fraction",
-          "lookahead", "ncp_delta", "ncp_timeout", "mute_negotiation_from", "coordination")}
+          "lookahead", "mute_negotiation_from", "coordination", *(o.name for o in OPTIONS))}
     if p["agent_id"] < 0:
         raise ParameterError("agent_id: must be set to a non-negative id (-p agent_id:=N)")
     if not p["scenario"]:
         raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
-    if p["protocol"] not in PROTOCOLS:
-        raise ParameterError(f"protocol: {p['protocol']!r} is not one of {', '.join(PROTOCOLS)}")
     for name in ("ci", "agents", "interval", "lookahead"):
         if p[name] < 0 or (name == "ci" and p[name] < 1):
             raise ParameterError(f"{name}: {p[name]} is out of range")
     if not 0.0 <= p["area_fraction"] <= 1.0:
         raise ParameterError(f"area_fraction: {p['area_fraction']} is not in [0, 1]")
+    if p["coordination"] not in ORGANISATIONS:
+        raise ParameterError(f"coordination: {p['coordination']!r} is not one of {', '.join(ORGANISATIONS)}")
     try:
-        ncp = NegotiationSettings(delta=p["ncp_delta"], timeout_rounds=p["ncp_timeout"])
-    except ValueError as exc:
-        raise ParameterError(f"ncp_delta/ncp_timeout: {exc}") from None
-    try:
+        settings = protocols.settings_from(p["protocol"], p)
         scenario = load_scenario(p["scenario"])
         if p["agents"]:
             scenario = with_team(scenario, p["agents"])
+        policy = CoordinationPolicy(ci=p["ci"], interval=p["interval"] or None,
+                                    area_fraction=p["area_fraction"] or None,
+                                    organisation=p["coordination"])
+        spec = protocols.check(p["protocol"], scenario=scenario, policy=policy,
+                               silence=p["mute_negotiation_from"] >= 0)
+    except protocols.ProtocolError as exc:
+        raise ParameterError(f"protocol: {exc}") from None
     except ScenarioError as exc:
         raise ParameterError(f"scenario: {exc}") from None
     ids = tuple(a.id for a in scenario.agents)
     if p["agent_id"] not in ids:
         raise ParameterError(f"agent_id: {p['agent_id']} is not in the scenario's team {list(ids)}")
-    if p["coordination"] not in ORGANISATIONS or (p["coordination"] == "coordinator"
-                                                  and p["protocol"] != "ccp"):
-        raise ParameterError(f"coordination: {p['coordination']!r} is not one of "
-                             f"{', '.join(ORGANISATIONS)} (coordinator: ccp only)")
-    policy = CoordinationPolicy(ci=p["ci"], interval=p["interval"] or None,
-                                area_fraction=p["area_fraction"] or None,
-                                organisation=p["coordination"])
-    agent = next(a for a in make_agents(scenario, p["protocol"], policy, ncp) if a.id == p["agent_id"])
-    if p["mute_negotiation_from"] >= 0 and p["protocol"] == "ncp":
+    agent = spec.make_agent(p["agent_id"], TeamInfo.from_scenario(scenario), policy, settings)
+    if p["mute_negotiation_from"] >= 0 and spec.silence is not None:
         # fault injection (tests, demos): this negotiator stops answering from that step on
-        agent.comm.mute_from = p["mute_negotiation_from"]
-    return scenario, AgentRuntime(agent, ids, policy.name, p["lookahead"])
+        spec.silence(agent, p["mute_negotiation_from"])
+    return scenario, policy, AgentRuntime(agent, ids, p["lookahead"])
 
 
 class AgentRunner:
     """Wires one :class:`AgentRuntime` to its topics."""
 
-    def __init__(self, node: Node, scenario, runtime: AgentRuntime):
+    def __init__(self, node: Node, scenario: Scenario, policy: CoordinationPolicy, runtime: AgentRuntime):
         self.node = node
         self.rt = runtime
+        self.organisation = policy.organisation
         self.n = len(runtime.team)
         self.fingerprint = tp.scenario_fingerprint(scenario)
         self.protocol = runtime.agent.protocol
@@ -126,11 +129,12 @@ class AgentRunner:
         self.sub_resend = node.create_subscription(String, tp.RESEND, self.on_resend, q)
         self.resent_at: float | None = None
         self.sub_end = node.create_subscription(String, tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS)
-        # NCP's moves have their own topic (same QoS as the step messages, same barrier).
-        self.pub_neg = self.sub_neg = None
-        if self.protocol == "ncp":
-            self.pub_neg = node.create_publisher(String, tp.NEGOTIATION, q)
-            self.sub_neg = node.create_subscription(String, tp.NEGOTIATION, self.on_negotiation, q)
+        # A protocol's own channels (NCP's moves) have their own topics (same QoS, same barrier).
+        self.channel_pubs = {c: node.create_publisher(String, tp.channel_topic(c), q)
+                             for c in runtime.channels}
+        self.channel_subs = [node.create_subscription(String, tp.channel_topic(c),
+                                                      lambda m, c=c: self.on_channel(m, c), q)
+                             for c in runtime.channels]
         self.sub_result = node.create_subscription(String, tp.RESULT, self.on_result, tp.RESULT_QOS)
         # Published to once (at ready); after that DDS asserts its liveliness by itself and the
         # world watches it (failures).
@@ -153,18 +157,16 @@ class AgentRunner:
                 and self.sub_tick.get_publisher_count() >= 1
                 and self.sub_end.get_publisher_count() >= 1
                 and self.pub_alive.get_subscription_count() >= 1
-                and (self.pub_neg is None or (self.pub_neg.get_subscription_count() >= self.n
-                                              and self.sub_neg.get_publisher_count() >= self.n)))
+                and all(pub.get_subscription_count() >= self.n for pub in self.channel_pubs.values())
+                and all(sub.get_publisher_count() >= self.n for sub in self.channel_subs))
 
     def on_timer(self) -> None:
         if not self.ready_sent:
             if self.matched():
                 # One sample asserts this robot's liveliness at once (the world waits for it)
                 self.pub_alive.publish(String(data=f"agent {self.rt.me}"))
-                organisation = getattr(getattr(self.rt.agent.comm, "policy", None), "organisation",
-                                       "distributed")
                 self.pub_ready.publish(tp.to_string(Ready(self.rt.me, self.protocol, self.fingerprint,
-                                                          organisation)))
+                                                          self.organisation)))
                 self.ready_sent = True
                 self.world_seen = True
                 self.node.get_logger().info(f"ready: {self.n} agents and the world matched")
@@ -202,7 +204,7 @@ class AgentRunner:
             self.throttle.warn(tp.STEP_MESSAGES, f"agent {sender}", why)
         for out in self.rt.progress():
             if isinstance(out, StepMessages):
-                pub = self.pub_neg if out.channel == "negotiation" else self.pub_batch
+                pub = self.channel_pubs.get(out.channel, self.pub_batch)
                 pub.publish(tp.to_string(out))
             elif out.TYPE == "acted":
                 self.pub_acted.publish(tp.to_string(out))
@@ -235,8 +237,8 @@ class AgentRunner:
     def on_batch(self, msg: String) -> None:
         self._feed(msg, tp.STEP_MESSAGES, StepMessages, self.rt.accept_batch)
 
-    def on_negotiation(self, msg: String) -> None:
-        self._feed(msg, tp.NEGOTIATION, StepMessages, self.rt.accept_batch)
+    def on_channel(self, msg: String, channel: str) -> None:
+        self._feed(msg, tp.channel_topic(channel), StepMessages, self.rt.accept_batch)
 
     def on_resend(self, msg: String) -> None:
         self._feed(msg, tp.RESEND, Resend, self.rt.accept_resend)
@@ -259,8 +261,9 @@ def declare(node: Node) -> None:
     node.declare_parameter("scenario", "")
     node.declare_parameter("agents", 0)
     node.declare_parameter("protocol", "ccp")
-    node.declare_parameter("ncp_delta", NegotiationSettings.delta)
-    node.declare_parameter("ncp_timeout", NegotiationSettings.timeout_rounds)
+    for spec in protocols.REGISTRY.values():
+        for opt in spec.options:
+            node.declare_parameter(opt.name, protocols.option_default(spec, opt))
     node.declare_parameter("mute_negotiation_from", -1)
     node.declare_parameter("ci", 1)
     node.declare_parameter("interval", 0)

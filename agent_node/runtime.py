@@ -16,26 +16,28 @@ some agents is relayed by the others on a Resend.
 """
 from __future__ import annotations
 
-import copy
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
-from ost_msgs_py.messages import (Action, ActionKind, AgentLost, NegotiationOffer, Observation,
-                                  ObjectInfo)
-from ost_msgs_py.runtime import (CHANNELS, ProtocolViolation, Acted, AgentReport, PlanStep, Resend,
-                                 RunEnd, ScheduleEntry, StepMessages, Tick)
-from ost_ros.agent import CcpAgent
-from ost_ros.recovery import Sweep
-from ost_ros.model import can_move, group_period
-from ost_ros.motion import apply as move
+from ost_msgs_py.messages import Action, AgentLost, AgentMessage, ObjectInfo, Observation
+from ost_msgs_py.runtime import (Acted, AgentReport, PlanStep, ProtocolViolation, Resend, RunEnd,
+                                 ScheduleEntry, StepMessages, Tick)
+from ost_ros import protocols
+from ost_ros.model import Cell
+from ost_ros.protocols.base import ProtocolAgent
+from ost_ros.protocols.plans import Plan, PlannedStep, unroll
 
 _SENSE = tuple((dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1))   # the world's sensing order
 
 
+STEP = "step"   # the channel of every protocol message without a channel of its own
+
+
 @dataclass
 class AgentRuntime:
-    agent: object                       # a core agent: act(obs), outbox(), communicate(t, msgs)
+    agent: ProtocolAgent                # a core agent: act(obs), outbox(), communicate(t, msgs)
     team: tuple[int, ...]               # every agent id, ascending (the simulator's inbox order)
-    trigger: str = ""
     lookahead: int = 0                  # plan this many quiet steps ahead (0: no event skipping)
     last: int = -1                      # the last step this agent acted on
     sent: int = 0                       # protocol messages broadcast so far
@@ -43,20 +45,24 @@ class AgentRuntime:
     _tick: Tick | None = None
     _end: RunEnd | None = None
     _batches: dict[int, dict[int, dict[str, StepMessages]]] = field(default_factory=dict)
-    _own: list = field(default_factory=list)
+    _own: list[AgentMessage] = field(default_factory=list)
     _plan: tuple[PlanStep, ...] = ()
     _known: dict[int, ObjectInfo] = field(default_factory=dict)
     _horizon: int = 8                   # current planning depth, adapted to what the world skips
     # Recovery from a lost sample: what was published for the last step, to publish again.
     _last_tick: Tick | None = None
-    _last_out: list = field(default_factory=list)
+    _last_out: list[Any] = field(default_factory=list)
     _batches_sent: dict[int, list[StepMessages]] = field(default_factory=dict)
-    _resend: list = field(default_factory=list)
+    _resend: list[Any] = field(default_factory=list)
     _relay: dict[int, dict[int, dict[str, StepMessages]]] = field(default_factory=dict)
     _report: AgentReport | None = None
     run: str | None = None              # the world's run id, from the first tick
-    _early: list = field(default_factory=list)   # batches that came before the first tick
-    dropped: list = field(default_factory=list)  # (sender, why) of messages of other runs
+    _early: list[StepMessages] = field(default_factory=list)   # batches before the first tick
+    dropped: list[tuple[int, str]] = field(default_factory=list)  # (sender, why): other runs'
+
+    def __post_init__(self) -> None:
+        # the transport channels of the agent's protocol: "step", then its own (registry)
+        self.channels: dict[str, tuple[type, ...]] = dict(protocols.get(self.agent.protocol).channels)
 
     @property
     def me(self) -> int:
@@ -74,7 +80,8 @@ class AgentRuntime:
             return  # own batch: kept locally when sent
         if batch.sender not in self.team:
             raise ProtocolViolation(f"step_messages from agent {batch.sender}, not in the team")
-        if batch.channel not in CHANNELS or not 1 <= batch.parts <= len(CHANNELS):
+        if (batch.channel != STEP and batch.channel not in self.channels) \
+                or not 1 <= batch.parts <= 1 + len(self.channels):
             raise ProtocolViolation(f"step_messages of agent {batch.sender}: channel "
                                     f"{batch.channel!r}, {batch.parts} parts")
         if batch.t < self.last:
@@ -178,9 +185,9 @@ class AgentRuntime:
                 if sender == self.me:
                     inbox.extend(self._own)
                 elif sender in peers:
-                    # the sender's outbox order: negotiation moves (its comm module) first
+                    # the sender's outbox order: its comm module's (own channels) first
                     parts = have[sender]
-                    for channel in ("negotiation", "step"):
+                    for channel in (*self.channels, STEP):
                         if channel in parts:
                             inbox.extend(parts[channel].messages)
             inbox.extend(m for m in failed if m.t == self.last)
@@ -207,17 +214,18 @@ class AgentRuntime:
             self._finish_step(tick.peers, tick.t, tick.failed)
             obs = tick.observation
             self._learn(obs.sensed)
+            plan = self.agent.plan(obs.t, obs.position) if self.lookahead else ()
             action = self.agent.act(obs)
             messages = self.agent.outbox()
             self.last = tick.t
             self._own = list(messages)
             self.sent += len(messages)
-            self._plan = self._make_plan(obs, action) if self.lookahead and not messages else ()
+            self._plan = self._plan_steps(plan, obs, action) if plan and not messages else ()
             # Batches first: once the world has the action, the batches are out (if this process
             # dies right after, the world counts them and peers can relay them).
             step_out: list = []
             if messages:
-                batches = split_batch(self.me, tick.t, messages, self.run)
+                batches = split_batch(self.me, tick.t, messages, self.run or "", self.channels)
                 step_out.extend(batches)
                 self._batches_sent[tick.t] = batches
                 # A peer is at most one lockstep step behind: keep the last few batches only.
@@ -234,7 +242,7 @@ class AgentRuntime:
             out.append(self._report)
         return out
 
-    def _learn(self, items) -> None:
+    def _learn(self, items: Iterable[Any]) -> None:
         for m in items:
             info = m if isinstance(m, ObjectInfo) else getattr(m, "object", None)
             if isinstance(info, ObjectInfo):
@@ -242,63 +250,30 @@ class AgentRuntime:
 
     # ------------------------------------------------------------------ event skipping
 
-    def _make_plan(self, obs: Observation, action: Action) -> tuple[PlanStep, ...]:
-        """Run a copy of the agent ahead while nothing would be said: its actions for the quiet
-        steps t+1, t+2, ..., each with the observation it expects (the world checks it)."""
-        team = getattr(self.agent, "team", None)
-        clone = copy.deepcopy(self.agent, {id(team): team} if team is not None else None)
-        clone.communicate(obs.t, [])
-        if clone.outbox():
-            return ()
-        pos = self._next_position(obs.position, action, obs.t)
-        plan = []
-        for s in range(obs.t + 1, obs.t + 1 + min(self.lookahead, self._horizon)):
-            reads = self._reads_sensor(clone)
-            sensed = self._predict_sensed(pos, s) if reads else ()
-            o = Observation(self.me, s, pos, tuple(self._known[i] for i in sensed))
-            act = clone.act(o)
-            if clone.outbox():
+    def _plan_steps(self, plan: Plan, obs: Observation, action: Action) -> tuple[PlanStep, ...]:
+        """The steps after ``obs.t`` of the agent's plan (made before it acted in ``obs.t``), each
+        with the observation it expects (the world checks it); cut where the agent would sense
+        an object it reacts to."""
+        steps = unroll(plan, obs.t, obs.position, 1 + min(self.lookahead, self._horizon))
+        if not steps or not _same_action(action, steps[0]):
+            return ()   # the plan does not start with what it did (never, if plans are right)
+        departures = self.agent.departures()
+        out = []
+        for st in steps[1:]:
+            sensed = self._predict_sensed(st.position, st.t, departures) if st.reads_sensor else ()
+            if any(self.agent.news(self._known[i]) for i in sensed):
                 break
-            plan.append(_plan_step(o, act, reads))
-            clone.communicate(s, [])
-            pos = self._next_position(pos, act, s)
-        return tuple(plan)
+            out.append(PlanStep(st.position, st.reads_sensor, sensed, st.kind, st.direction,
+                                st.object, st.state))
+        return tuple(out)
 
-    def _reads_sensor(self, agent) -> bool:
-        # CcpAgent looks at its sensor only while searching; for any other agent class assume it
-        # always does (the world then also compares what is sensed: slower, never wrong).
-        if type(agent).act is CcpAgent.act:
-            return agent.reads_sensor()
-        return True
-
-    def _scheduled(self) -> dict[int, ScheduleEntry | object]:
-        comm = getattr(self.agent, "comm", None)
-        return {a.object: a for a in getattr(comm, "schedule", ()) if not isinstance(a, Sweep)}
-
-    def _next_position(self, pos, action: Action, t: int):
-        if action.kind is ActionKind.MOVE:
-            return move(pos, action.direction)
-        if action.kind is ActionKind.CARRY:
-            # Planned = executed: the group is complete from the assignment's start on, and
-            # moves in the steps its slowest member can move in.
-            a = self._scheduled().get(action.object)
-            if a is not None and t >= a.start and can_move(t, self._group_period(a.agents)):
-                return move(pos, action.direction)
-        return pos
-
-    def _group_period(self, agents) -> int:
-        team = getattr(self.agent, "team", None)
-        if team is None or not team.periods:
-            return 1
-        return group_period([team.periods[team.index(j)] for j in agents])
-
-    def _predict_sensed(self, pos, s: int) -> tuple[int, ...]:
-        """Known objects expected at their original cell in the 3×3 block at step ``s``."""
-        sched = self._scheduled()
-        by_cell: dict[tuple[int, int], list[int]] = {}
+    def _predict_sensed(self, pos: Cell, s: int, departures: Mapping[int, int]) -> tuple[int, ...]:
+        """Known objects expected in the 3×3 block at step ``s``: where they were found, unless
+        the agent knows their carry has started by then."""
+        by_cell: dict[Cell, list[int]] = {}
         for info in self._known.values():
-            a = sched.get(info.id)
-            if a is None or a.start >= s:
+            start = departures.get(info.id)
+            if start is None or start >= s:
                 by_cell.setdefault(info.location, []).append(info.id)
         out: list[int] = []
         for dx, dy in _SENSE:
@@ -310,33 +285,26 @@ class AgentRuntime:
     # ------------------------------------------------------------------ end of run
 
     def report(self) -> AgentReport:
-        comm = getattr(self.agent, "comm", None)
-        schedule = tuple(ScheduleEntry(a.object, tuple(a.agents), a.start, a.finish)
-                         for a in getattr(comm, "schedule", ()) if not isinstance(a, Sweep))
-        found = tuple((int(k), int(v)) for k, v in getattr(comm, "found_at", {}).items())
-        protocol = self.agent.protocol
-        # As ost_ros.simulator.finish_result: CCP/NCP agents agree on the schedule, HCP on the groups.
-        view = getattr(comm, "groups", None) if protocol == "hcp" else getattr(comm, "schedule", None)
-        return AgentReport(self.me, protocol, self.trigger if protocol != "hcp" else "help",
-                           getattr(comm, "predicted_makespan", None),
-                           int(getattr(comm, "coordinations", 0)), schedule, found,
-                           tuple(getattr(self.agent, "warnings", ())), self.sent, repr(view),
+        k = self.agent.summary()
+        schedule = tuple(ScheduleEntry(a.object, tuple(a.agents), a.start, a.finish) for a in k.schedule)
+        found = tuple((int(o), int(t)) for o, t in k.found.items())
+        return AgentReport(self.me, self.agent.protocol, k.trigger, k.predicted_makespan,
+                           k.coordinations, schedule, found, k.warnings, self.sent, k.view,
                            run=self.run or "")
 
 
-def split_batch(sender: int, t: int, messages: list, run: str = "") -> list[StepMessages]:
-    """A step's messages as batches per channel: NCP moves on ``negotiation``, the rest on ``step``."""
-    moves = tuple(m for m in messages if isinstance(m, NegotiationOffer))
-    rest = tuple(m for m in messages if not isinstance(m, NegotiationOffer))
-    parts = [(c, ms) for c, ms in (("step", rest), ("negotiation", moves)) if ms]
+def split_batch(sender: int, t: int, messages: Sequence[AgentMessage], run: str = "",
+                channels: Mapping[str, tuple[type, ...]] | None = None) -> list[StepMessages]:
+    """A step's messages as batches per channel: each protocol message kind its protocol gives a
+    channel of its own goes there (NCP's moves), the rest on ``step``."""
+    own = {cls: name for name, kinds in (channels or {}).items() for cls in kinds}
+    split: dict[str, list[AgentMessage]] = {STEP: []}
+    for m in messages:
+        split.setdefault(own.get(type(m), STEP), []).append(m)
+    parts = [(c, tuple(ms)) for c, ms in split.items() if ms]
     return [StepMessages(sender, t, ms, c, len(parts), run) for c, ms in parts]
 
 
-def _plan_step(obs: Observation, action: Action, reads: bool) -> PlanStep:
-    return PlanStep(obs.position, reads, tuple(o.id for o in obs.sensed) if reads else (),
-                    action.kind, tuple(action.direction), action.object, action.state)
-
-
-def _same_action(action: Action, step: PlanStep) -> bool:
+def _same_action(action: Action, step: PlanStep | PlannedStep) -> bool:
     return (action.kind is step.kind and tuple(action.direction) == tuple(step.direction)
             and action.object == step.object and action.state == step.state)

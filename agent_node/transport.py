@@ -18,6 +18,7 @@ from std_msgs.msg import String
 
 from ost_msgs_py import codec
 from ost_msgs_py.codec import MessageError
+from ost_ros import protocols
 from ost_ros.model import Scenario
 from ost_ros.scenario import dump_scenario
 
@@ -33,7 +34,11 @@ READY = "/ost/ready"                    # agent → world
 RUN_END = "/ost/run_end"                # world → all agents
 REPORTS = "/ost/reports"                # agent → world
 RESULT = "/ost/result"                  # world → anyone
-NEGOTIATION = "/ost/negotiation"        # agent → all agents: NCP moves (NCP runs only)
+
+
+def channel_topic(channel: str) -> str:
+    """Agent → all agents: a protocol's own channel (e.g. NCP's ``negotiation``), in its runs only."""
+    return f"{NAMESPACE}/{channel}"
 
 
 def agent_node_name(agent_id: int) -> str:
@@ -99,10 +104,10 @@ TOPICS: dict[str, tuple[QoSProfile, str]] = {
 }
 
 
-# Topics only a run of the given protocol has (same QoS and type as the step messages).
-PROTOCOL_TOPICS: dict[str, dict[str, tuple[QoSProfile, str]]] = {
-    "ncp": {NEGOTIATION: (LOCKSTEP_QOS, "std_msgs/msg/String")},
-}
+def protocol_topics(protocol: str) -> dict[str, tuple[QoSProfile, str]]:
+    """Topics only a run of the given protocol has (same QoS and type as the step messages)."""
+    return {channel_topic(c): (LOCKSTEP_QOS, "std_msgs/msg/String")
+            for c in protocols.get(protocol).channels}
 
 
 def scenario_fingerprint(scenario: Scenario) -> str:

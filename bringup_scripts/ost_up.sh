@@ -2,7 +2,7 @@
 # Start a run over DDS: one world node and N agent nodes, one process (PID) each.
 #
 #   bringup_scripts/ost_up.sh --agents N (--objects M --seed S | --scenario FILE)
-#       [--protocol ccp|hcp|ncp] [--ci K | --interval T] [--width W --height H --nmax X]
+#       [--protocol NAME] [--ci K | --interval T] [--width W --height H --nmax X]
 #       [--mute-negotiation AGENT:STEP] [--respawn-world K]
 #       [--kill-agent AGENT:STEP]... [--failure-timeout SEC] [--partition equal|negotiated]
 #       [--coordination distributed|coordinator]
@@ -23,11 +23,13 @@
 # multicast and discovers through ROS_STATIC_PEERS / a Fast DDS discovery server on host 0.
 # An agent process that dies mid-run is not the end of it: the world declares the robot failed
 # once it has shown no liveliness for twice --failure-timeout (default 1 s) and the survivors
-# re-coordinate (ccp; hcp and ncp runs end with the reason). --kill-agent AGENT:STEP makes that
+# re-coordinate (protocols that recover: `ost protocols list`; other runs end with the reason). --kill-agent AGENT:STEP makes that
 # agent SIGKILL itself on the tick of that step (fault injection; repeatable). --partition
 # negotiated: the robots' search areas are negotiated first (`ost negotiate partition`, by speed
 # and private forbidden zones); every process then loads that scenario. --coordination
 # coordinator: the lowest-id agent alone runs Algorithm Coordination and broadcasts the schedule.
+# --protocol: a registered protocol (`ost protocols list`; default ccp); what it cannot run
+# (an organisation, negotiated areas, a silenced negotiator) is refused before anything starts.
 set -uo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -77,7 +79,7 @@ while [ $# -gt 0 ]; do
     --json) json=1; shift ;;
     --no-skip) skip=false; shift ;;
     --background) background=1; shift ;;
-    -h|--help) sed -n '2,34p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) awk 'NR > 1 && !/^#/ {exit} NR > 1 {sub(/^# ?/, ""); print}' "$0"; exit 0 ;;
     *) die "unknown argument '$1' (see --help)" ;;
   esac
 done
@@ -92,9 +94,11 @@ fi
 [ -z "$agents" ] || [ "$agents" -ge 1 ] || die "--agents: must be at least 1"
 [ "$ci" -ge 1 ] || die "--ci: must be at least 1"
 [ -z "$domain" ] || [ "$domain" -le 232 ] || die "--domain-id: $domain is above 232"
-case "$protocol" in ccp|hcp|ncp) ;; *) die "--protocol: '$protocol' is not ccp, hcp or ncp" ;; esac
-[ -z "$mute" ] || [ "$protocol" = ncp ] || die "--mute-negotiation: only with --protocol ncp"
-[ "$coordination" = distributed ] || [ "$protocol" = ccp ] || die "--coordination coordinator: only with --protocol ccp"
+# What the protocol can run, from the registry (one line and exit code 2 if it cannot).
+check=(--coordination "$coordination"); [ -z "$mute" ] || check+=(--silence)
+[ "$partition" = negotiated ] && check+=(--own-sweeps)
+why="$("$bin/ost" protocols check "$protocol" "${check[@]}" 2>&1 >/dev/null)" \
+  || die "--protocol $protocol: ${why#*error: }"
 case "$discovery" in multicast|static|server) ;; *) die "--discovery: '$discovery' is not multicast, static or server" ;; esac
 [ "$loss" -le 100 ] || die "--loss: a percentage 0..100"
 if [ "$hosts" -gt 0 ]; then
@@ -195,7 +199,6 @@ else
   team="${agents:-0}"
 fi
 if [ "$partition" = negotiated ]; then
-  [ "$protocol" = hcp ] && die "--partition negotiated: HCP owns objects by the equal partition; use ccp or ncp"
   [ "$team" = 0 ] || die "--partition negotiated: --agents would replace the scenario's team; give a scenario with it"
   "$bin/ost" negotiate partition --scenario "$scenario" -o "$run_dir/scenario_negotiated.yaml" \
     > "$run_dir/partition.txt" || exit 2

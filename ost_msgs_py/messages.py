@@ -226,6 +226,13 @@ class Observation:
     version: int = SCHEMA_VERSION
 
 
+# The two global states the world reads from ``Action.state`` (every protocol's agents use these
+# names): a move made while SEARCHING counts as search (else as travel), and an agent reporting
+# FINISH at its base is done. Every other state name is the protocol's own, for display only.
+SEARCHING_STATE = "SEARCHING"
+FINISH_STATE = "FINISH"
+
+
 @dataclass(frozen=True)
 class Action:
     """An agent's action for step ``t``: wait, move one cell, or carry ``object`` one cell.
@@ -233,7 +240,8 @@ class Action:
     A carry moves the object (and its carriers) only when enough agents carry it together in the
     same step; until the group is complete the carriers hold the object where it is.
 
-    ``state`` is the agent's global FSA state when it acted (for bookkeeping and display).
+    ``state`` is the agent's global FSA state when it acted: the world reads only
+    :data:`SEARCHING_STATE` and :data:`FINISH_STATE` from it; the rest is for display.
     """
 
     TYPE: ClassVar[str] = "action"
@@ -252,6 +260,6 @@ AGENT_MESSAGES: tuple[type, ...] = (ObjectFound, SearchDone, Selection, HelpRequ
 WORLD_MESSAGES: tuple[type, ...] = (Observation, Action)
 ALL_MESSAGES: dict[str, type] = {cls.TYPE: cls for cls in AGENT_MESSAGES + WORLD_MESSAGES}
 
+# Any message an agent's comm module takes in (the world's AgentLost notice included).
 AgentMessage = (ObjectFound | SearchDone | Selection | HelpRequest | HelpOffer | HelpAccept | HelpRelease
-                | NegotiationOffer)
-
+                | NegotiationOffer | Status | AgentLost | ScheduleUpdate)

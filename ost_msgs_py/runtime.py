@@ -6,7 +6,8 @@
 - :class:`Acted` (agent → world): the action of step t, how many protocol messages the agent
   broadcast in step t, and (event skipping) its plan for the following quiet steps;
 - :class:`StepMessages` (agent → all agents): the sender's protocol messages of step t, sent only
-  when there are any (NCP's negotiation moves travel as a separate part on /ost/negotiation). An agent runs its comm module for step t once it holds the batch of every
+  when there are any (a protocol's own channel, e.g. NCP's moves on /ost/negotiation, carries a
+  separate part). An agent runs its comm module for step t once it holds the batch of every
   sender the world listed — a counting barrier whose count the world supplies, so quiet steps
   cost no agent-to-agent traffic;
 - :class:`Resend`: recovery — an agent whose tick waited too long for some peers' batches asks
@@ -109,16 +110,13 @@ class Acted:
     version: int = RUNTIME_VERSION
 
 
-CHANNELS = ("step", "negotiation")   # /ost/step_messages, /ost/negotiation
-
-
 @dataclass(frozen=True)
 class StepMessages:
     """The sender's protocol messages of step ``t``, in the order its outbox produced them.
 
-    ``channel``: ``step`` (on /ost/step_messages) or ``negotiation`` (NCP moves, on
-    /ost/negotiation). A step whose messages are of both kinds is sent as two parts
-    (``parts`` = 2); a receiver waits for every part.
+    ``channel``: ``step`` (on /ost/step_messages) or a channel the protocol gives some of its
+    messages (NCP: ``negotiation``, on /ost/negotiation). A step whose messages go to several
+    channels is sent in as many parts (``parts``); a receiver waits for every part.
     """
 
     TYPE: ClassVar[str] = "step_messages"

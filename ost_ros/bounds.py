@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ost_ros.events import first_sensing, sweep_paths
+from ost_ros.sensing import first_sensing, sweep_paths
 from ost_ros.model import Scenario
 
 

@@ -11,22 +11,17 @@ import importlib
 import sys
 from typing import Callable, Sequence
 
+from ost_ros.commands.args import OneLineParser
 from ost_ros.errors import UsageError
 
 __all__ = ["OneLineParser", "UsageError", "build_parser", "main"]
 
 
-class OneLineParser(argparse.ArgumentParser):
-    """argparse with one-line errors (argparse prints usage + error; we print only the error)."""
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
-
-
 # Modules that add subcommands, in the order they appear in ``ost --help``.
 VERB_MODULES: tuple[str, ...] = (
     "ost_ros.commands.core",
-    "ost_ros.negotiation.cli",
+    "ost_ros.commands.protocols",
+    "ost_ros.commands.negotiate",
     "ost_ros.commands.ros",
     "ost_ros.commands.study",
     "ost_ros.commands.faults",

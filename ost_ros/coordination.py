@@ -14,11 +14,15 @@ same schedule, which is what lets CCP agree without further communication.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ost_ros.model import ObjectSpec, arrival, arrival_np, group_period
+
+if TYPE_CHECKING:
+    from ost_ros.team import TeamInfo
 
 # Larger than any reachable cost, small enough that sums never overflow int64.
 _FAR = np.int64(1) << 60
@@ -234,3 +238,25 @@ class CoordinationPolicy:
             f = self.area_fraction
             return int(searched_now / f + 1e-9) > int(searched_before / f + 1e-9)
         return unscheduled >= self.ci
+
+    def next_due(self, t: int, unscheduled: int, team: TeamInfo) -> int | None:
+        """The first step s >= t at which :meth:`due` holds while nothing new is found (None:
+        never) — the step a comm module next coordinates on its own."""
+        if unscheduled == 0:
+            return None
+        if self.interval is not None:
+            return t + (-(t + 1)) % self.interval
+        if self.area_fraction is None:
+            return t if unscheduled >= self.ci else None
+        end = int(team.sweep_lengths().max()) + 1   # from here on the fraction stays 1
+        if t > end:
+            return None
+        ts = np.arange(t, end + 1)
+        now, before = team.searched_fractions(ts), team.searched_fractions(ts - 1)
+        f = self.area_fraction
+        # a superset (loose tolerance); the exact test decides
+        for s in ts[np.floor(now / f + 1e-6) > np.floor(before / f - 1e-6)]:
+            s = int(s)
+            if self.due(s, unscheduled, team.searched_fraction(s - 1), team.searched_fraction(s)):
+                return s
+        return None

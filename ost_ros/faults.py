@@ -10,11 +10,14 @@ from __future__ import annotations
 import random
 from dataclasses import dataclass
 
+from collections.abc import Callable
+
+from ost_ros import protocols
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.engines import simulate
 from ost_ros.model import Grid, Scenario
 from ost_ros.result import RunResult
 from ost_ros.scenario import generate_scenario
-from ost_ros.simulator import simulate
 
 
 @dataclass(frozen=True)
@@ -80,16 +83,22 @@ def row_of(name: str, fault: str, result: RunResult, baseline: int | None, note:
     return FaultRow(name, fault, delivered, len(result.objects), result.makespan, baseline, note)
 
 
-def in_process_rows(quick: bool = False, seed: int = 1, progress=None,
-                    protocols: tuple[str, ...] = ("ccp", "hcp")) -> list[FaultRow]:
+def recovering() -> tuple[str, ...]:
+    """The protocols of the registry that recover from robot failures."""
+    return tuple(n for n, s in protocols.REGISTRY.items() if s.capabilities.recovers_failures)
+
+
+def in_process_rows(quick: bool = False, seed: int = 1, progress: Callable[[], object] | None = None,
+                    names: tuple[str, ...] | None = None) -> list[FaultRow]:
     rows: list[FaultRow] = []
     policy = CoordinationPolicy(ci=1)
     runs = [(label, scenario, protocol) for label, scenario in study_scenarios(quick)
-            for protocol in protocols]
+            for protocol in (names or recovering())]
     for label, scenario, protocol in runs:
         name = f"{protocol.upper()}: {label}"
         base = simulate(scenario, protocol, policy, engine="auto")
         rows.append(row_of(name, "none", base, base.makespan))
+        assert base.makespan is not None, base.error
         for case in cases_for(scenario):
             failures = case.failures(scenario, base.makespan, seed)
             r = simulate(scenario, protocol, policy, failures=failures)

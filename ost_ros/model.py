@@ -10,6 +10,7 @@ the steps all its members can move (t mod lcm of their periods = 0).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -50,7 +51,25 @@ def arrival_np(t0: np.ndarray, d: np.ndarray, period: np.ndarray | int = 1) -> n
     return np.where(d > 0, first + (d - 1) * k + 1, t0)
 
 
-def group_period(periods) -> int:
+def moves_between(a: int, b: int, period: int = 1) -> int:
+    """Steps s in [a, b) with s % period == 0: the moves of an agent walking from step a."""
+    if b <= a:
+        return 0
+    return (b - 1) // period - (a - 1) // period if a > 0 else (b - 1) // period + 1
+
+
+def walk(cur: Cell, target: Cell, moves: int) -> Cell:
+    """Where ``moves`` x-first unit moves from ``cur`` toward ``target`` end (at most at it)."""
+    dx = target[0] - cur[0]
+    mx = min(moves, abs(dx))
+    x = cur[0] + (mx if dx > 0 else -mx)
+    moves -= mx
+    dy = target[1] - cur[1]
+    my = min(moves, abs(dy))
+    return (x, cur[1] + (my if dy > 0 else -my))
+
+
+def group_period(periods: Sequence[int]) -> int:
     """The period of a group carrying together: the lcm of its members' periods."""
     return math.lcm(*(int(p) for p in periods)) if len(periods) else 1
 

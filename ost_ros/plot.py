@@ -7,9 +7,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ost_msgs_py.messages import Action
+
+from ost_ros import protocols
 from ost_ros.model import Scenario
 from ost_ros.result import RunResult
+from ost_ros.world import World
 
+# The shared-schedule protocols' states keep these colours; other states (a protocol's own, from
+# the registry) take the next colours of a qualitative palette.
 STATE_COLOURS = {
     "SEARCHING": "#9ecae1",
     "DECISION": "#d9d9d9",
@@ -18,6 +24,16 @@ STATE_COLOURS = {
     "MOVING": "#31a354",
     "RETURNING": "#756bb1",
 }
+_MORE = ("#fd8d3c", "#c994c7", "#74c476", "#6baed6", "#bcbddc", "#fdd0a2")
+
+
+def state_colours(protocol: str) -> dict[str, str]:
+    """Colour of every state a protocol's robots report (FINISH is not drawn)."""
+    out, extra = {}, iter(_MORE)
+    for state in protocols.get(protocol).states:
+        if state != "FINISH":
+            out[state] = STATE_COLOURS.get(state) or next(extra, "#969696")
+    return out
 
 
 @dataclass
@@ -27,7 +43,7 @@ class Timeline:
 
     runs: dict[int, list[list]] = field(default_factory=dict)
 
-    def __call__(self, world, actions) -> None:
+    def __call__(self, world: World, actions: list[Action]) -> None:
         t = world.t - 1
         for a in actions:
             runs = self.runs.setdefault(a.agent, [])
@@ -70,11 +86,12 @@ def plot_run(scenario: Scenario, result: RunResult, timeline: Timeline, path: st
                      f"N={scenario.n_agents}, M={scenario.n_objects}")
     ax_map.legend(loc="upper right", fontsize=7)
 
+    colours = state_colours(result.protocol)
     ids = [a.id for a in scenario.agents]
     for row, aid in enumerate(ids):
         for state, first, last in timeline.runs.get(aid, []):
-            if state in STATE_COLOURS:
-                ax_t.barh(row, last - first + 1, left=first, height=0.8, color=STATE_COLOURS[state], lw=0)
+            if state in colours:
+                ax_t.barh(row, last - first + 1, left=first, height=0.8, color=colours[state], lw=0)
     ax_t.set_yticks(range(len(ids)), [f"r{i}" for i in ids], fontsize=7 if len(ids) > 20 else 9)
     ax_t.invert_yaxis()
     ax_t.set_xlabel("time step")
@@ -82,8 +99,8 @@ def plot_run(scenario: Scenario, result: RunResult, timeline: Timeline, path: st
         ax_t.axvline(result.makespan, color="k", lw=0.8, ls="--")
     ax_t.set_title(f"{result.protocol.upper()} ({result.trigger}): makespan {result.makespan}, "
                    f"last delivery {result.last_delivery}")
-    ax_t.legend(handles=[Patch(color=c, label=s) for s, c in STATE_COLOURS.items()], fontsize=7,
-                loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=len(STATE_COLOURS), frameon=False)
+    ax_t.legend(handles=[Patch(color=c, label=s) for s, c in colours.items()], fontsize=7,
+                loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=min(len(colours), 6), frameon=False)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

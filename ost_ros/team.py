@@ -69,6 +69,15 @@ class TeamInfo:
     def sweep_ends(self) -> np.ndarray:
         return np.array([s.end for s in self.sweeps], dtype=np.int64).reshape(-1, 2)
 
+    def searched_fractions(self, ts: np.ndarray) -> np.ndarray:
+        """:meth:`searched_fraction` at every step of ``ts`` at once (the same floats)."""
+        moves = self.sweep_moves()
+        total = int(moves.sum())
+        if total == 0:
+            return np.ones(len(ts))
+        done = -(-np.maximum(np.asarray(ts, dtype=np.int64), 0)[:, None] // self.period_array()[None, :])
+        return np.minimum(moves[None, :], done).sum(axis=1) / total
+
     def searched_fraction(self, t: int) -> float:
         """Share of the whole team's sweep done by time ``t`` (same for every agent)."""
         moves = self.sweep_moves()

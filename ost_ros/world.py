@@ -16,20 +16,19 @@ still carry (``required`` ≤ survivors) is delivered and every survivor is home
 from __future__ import annotations
 
 from collections import defaultdict
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import Any
 
-from ost_msgs_py.messages import Action, ActionKind, Observation
+from ost_msgs_py.messages import FINISH_STATE, SEARCHING_STATE, Action, ActionKind, ObjectInfo, Observation
 from ost_ros.model import Cell, Scenario, can_move, group_period
 from ost_ros.motion import DIRECTIONS, apply
 from ost_ros.result import AgentRecord, ObjectRecord, RunResult
-
-FINISH_STATE = "FINISH"
 _SENSE = tuple((dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1))
 
 
 @dataclass
 class _Obj:
-    spec: object
+    spec: ObjectInfo
     at: Cell
     start: int | None = None
     carriers: tuple[int, ...] = ()
@@ -118,7 +117,7 @@ class World:
                     self._reject(act, f"moves every {self.periods[act.agent]} steps, not in step {self.t}")
                     continue
                 moves[act.agent] = target
-                if act.state == "SEARCHING":
+                if act.state == SEARCHING_STATE:
                     rec.search += 1
                 else:
                     rec.travel += 1
@@ -168,6 +167,68 @@ class World:
         else:
             self._at[target].add(oid)
 
+    # ------------------------------------------------------------------ many steps at once
+    # For the event engine: what ``apply`` would record over ``steps`` steps of one kind of
+    # action, without stepping (the engine has checked that nothing else happens meanwhile).
+
+    def bulk_walk(self, agent: int, to: Cell, steps: int, moves: int, state: str) -> None:
+        """``steps`` steps of walking (sweeping if ``state`` is SEARCHING): ``moves`` moves end at
+        ``to``; in the other steps the agent waits (it may not move in them)."""
+        rec = self.records[agent]
+        self.carrying.pop(agent, None)
+        rec.finished = None
+        self.positions[agent] = to
+        if state == SEARCHING_STATE:
+            rec.search += moves
+        else:
+            rec.travel += moves
+        rec.idle += steps - moves
+
+    def bulk_wait(self, agent: int, steps: int, state: str, holding: int | None = None) -> None:
+        """``steps`` steps standing still: waiting, or holding object ``holding`` (its group is
+        not complete yet, which counts as idle even for a robot that has finished)."""
+        rec = self.records[agent]
+        if holding is not None:
+            self.carrying[agent] = holding
+        else:
+            self.carrying.pop(agent, None)
+        if state != FINISH_STATE:
+            rec.finished = None
+        elif rec.finished is None and self.positions[agent] == self.bases[agent]:
+            rec.finished = self.t
+        if holding is not None or rec.finished is None:
+            rec.idle += steps
+
+    def bulk_carry(self, oid: int, carriers: list[int], to: Cell, steps: int, moves: int,
+                   first: int) -> None:
+        """``steps`` steps of a complete group carrying object ``oid``: ``moves`` moves, the first
+        in step ``first``, end at ``to`` (delivered there if it is the destination); in the other
+        steps the group holds it."""
+        obj = self.objects[oid]
+        if moves:
+            if obj.start is None:
+                obj.start = first
+            group = tuple(sorted(carriers))
+            if obj.carriers != group:
+                obj.carriers = group
+            self._at[obj.at].discard(oid)
+            obj.at = to
+            if to == obj.spec.destination:
+                obj.delivered = self.t + steps
+            else:
+                self._at[to].add(oid)
+        for agent in carriers:
+            rec = self.records[agent]
+            self.carrying[agent] = oid
+            rec.finished = None
+            self.positions[agent] = to
+            rec.carry += moves
+            rec.idle += steps - moves
+
+    def pass_steps(self, steps: int) -> None:
+        """The clock after steps executed in bulk."""
+        self.t += steps
+
     # ------------------------------------------------------------------ failures
 
     def fail(self, agent_id: int) -> None:
@@ -175,11 +236,9 @@ class World:
         if agent_id in self.records and agent_id not in self.failed:
             self.failed[agent_id] = self.t
 
-    def dropped_by(self, agent_id: int) -> tuple:
-        """What a failing agent was holding (its last action carried it, it stands on it):
-        the object's info at the cell where it now lies."""
-        from dataclasses import replace
-
+    def dropped_by(self, agent_id: int) -> tuple[ObjectInfo, ...]:
+        """What a failing agent reported holding: the object its last action carried, if it
+        stands on it — with the cell where it now lies (the robot's own last position)."""
         oid = self.carrying.get(agent_id)
         o = self.objects.get(oid) if oid is not None else None
         if o is None or o.delivered is not None or o.at != self.positions[agent_id]:
@@ -204,7 +263,7 @@ class World:
                 and all(r.finished is not None for i, r in self.records.items()
                         if i not in self.failed))
 
-    def result(self, **extra) -> RunResult:
+    def result(self, **extra: Any) -> RunResult:
         agents = [self.records[a.id] for a in self.scenario.agents]
         objects = [ObjectRecord(o.spec.id, o.carriers, o.start, o.delivered)
                    for o in sorted(self.objects.values(), key=lambda o: o.spec.id)]

@@ -25,7 +25,9 @@ from ost_msgs_py.runtime import ProtocolViolation, Acted, AgentReport, PlanStep,
 from ost_ros.coordination import Assignment
 from ost_ros.model import Scenario
 from ost_ros.result import RunResult
-from ost_ros.simulator import RECOVERING, step_limit
+from ost_ros import protocols
+from ost_ros.coordination import CoordinationPolicy
+from ost_ros.engines import step_limit
 from ost_ros.world import World
 
 
@@ -44,7 +46,8 @@ class WorldRuntime:
     _answered: dict[int, Acted] = field(default_factory=dict)   # each agent's latest answer
     _reports: dict[int, AgentReport] = field(default_factory=dict)
     failed: dict[int, int] = field(default_factory=dict)   # agent -> step it failed in
-    protocol: str = "ccp"        # the agents' protocol: ccp re-coordinates after a failure
+    protocol: str = "ccp"        # the agents' protocol (whether it recovers from a failure)
+    organisation: str = "distributed"   # who coordinates (the coordinator does not recover)
     aborted: str | None = None   # why the run was ended early (a failure the protocol cannot take)
     _gone: set[int] = field(default_factory=set)   # lost after the run ended (no report coming)
     _notices: dict[int, AgentLost] = field(default_factory=dict)   # what every later tick says
@@ -72,9 +75,11 @@ class WorldRuntime:
         self._notices[agent] = AgentLost(agent, self.world.t, self.world.dropped_by(agent))
         self._acted.pop(agent, None)
         self.world.fail(agent)
-        if self.protocol not in RECOVERING:
-            self.aborted = (f"agent {agent} failed in step {self.world.t} and this protocol does "
-                            "not recover from failures (ccp and hcp do)")
+        try:
+            protocols.check(self.protocol, policy=CoordinationPolicy(organisation=self.organisation),
+                            failures=True)
+        except protocols.ProtocolError as exc:
+            self.aborted = f"agent {agent} failed in step {self.world.t}; {exc}"
             self.ended = RunEnd(self.world.t, self.world.t - 1, False, (), self.run, self._failed())
             return self.ended
         if self.max_steps is None:   # survivors may need longer than the fault-free bound

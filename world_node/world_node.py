@@ -203,8 +203,7 @@ class WorldNode(Node):
         if len(protocols) > 1:
             self.throttle.warn(tp.READY, "agents", f"mixed protocols {sorted(protocols)}")
         self.rt.protocol = min(protocols)   # what a failure can be recovered by
-        if any(r.organisation != "distributed" for r in self.ready.values()):
-            self.rt.protocol += " (coordinator organisation)"
+        self.rt.organisation = min(r.organisation for r in self.ready.values())
         self.started = True
         self.t_start = time.monotonic()
         self.get_logger().info(f"all {len(self.ids)} agents ready; step 0")

@@ -8,17 +8,18 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ost_ros import protocols
 from ost_ros import validate as v
+from ost_ros.bounds import lower_bound
 from ost_ros.commands.args import (failure, fraction, leaf, load_scenario_arg, natural, period_list,
                                    positive)
-from ost_ros.errors import UsageError
 from ost_ros.coordination import ORGANISATIONS, CoordinationPolicy, coordinate
-from ost_ros.model import DEFAULT_HEIGHT, DEFAULT_NMAX, DEFAULT_WIDTH, Grid, ObjectSpec
+from ost_ros.engines import ENGINES, StepHook, check_failures, choose_engine, simulate
+from ost_ros.errors import UsageError
+from ost_ros.model import DEFAULT_HEIGHT, DEFAULT_NMAX, DEFAULT_WIDTH, Grid, ObjectSpec, Scenario
 from ost_ros.scenario import ScenarioError, build_scenario, dump_scenario, generate_scenario
-from ost_ros.bounds import lower_bound
-from ost_ros.ncp import NegotiationSettings
-from ost_ros.simulator import ENGINES, PROTOCOLS, check_failures, choose_engine, simulate
 from ost_ros.validate import FieldError
+from ost_ros.world import World
 
 OBJECT_KEYS = ("id", "location", "destination", "required")
 
@@ -40,43 +41,7 @@ def register(sub) -> None:
                         "periods[k mod len] steps), e.g. 1,1,2,3 (default: all 1, the paper's)")
     p.add_argument("-o", "--output", help="file to write (default: standard output)")
 
-    p = leaf(sub, "sim", cmd_sim, help="simulate a scenario in-process",
-              description="Run a scenario in the in-process reference simulator and print the "
-                          "makespan, last delivery and per-agent cost / idle / carry time.")
-    p.add_argument("scenario", help="scenario file (YAML)")
-    p.add_argument("--protocol", choices=PROTOCOLS, default="ccp", help="cooperation protocol")
-    trig = p.add_mutually_exclusive_group()
-    trig.add_argument("--ci", type=positive, default=1,
-                      help="coordination interval: coordinate when this many found objects are "
-                           "unscheduled (default 1; >= M means after the whole search)")
-    trig.add_argument("--interval", type=positive, help="coordinate every T time steps instead")
-    trig.add_argument("--area-fraction", type=fraction,
-                      help="coordinate each time this fraction of the area is searched instead")
-    p.add_argument("--ncp-delta", type=fraction, default=NegotiationSettings.delta,
-                   help="NCP: claim discount per negotiation round, in (0, 1) (default %(default)s)")
-    p.add_argument("--ncp-timeout", type=positive, default=NegotiationSettings.timeout_rounds,
-                   help="NCP: rounds without an answer before a negotiator is left out "
-                        "(default %(default)s)")
-    p.add_argument("--agents", type=positive,
-                   help="replace the scenario's team by N agents (default partition and bases)")
-    p.add_argument("--max-steps", type=positive, help="stop after this many steps")
-    p.add_argument("--coordination", choices=ORGANISATIONS, default="distributed",
-                   help="who runs Algorithm Coordination: every agent (distributed, default) or "
-                        "the lowest-id agent, which broadcasts the schedule (coordinator; ccp)")
-    p.add_argument("--partition", choices=("equal", "negotiated"), default="equal",
-                   help="search areas: the paper's equal m×n partition, or negotiated among the "
-                        "robots by speed and private forbidden zones (ost negotiate partition)")
-    p.add_argument("--partition-seed", type=natural, default=0, help="seed of that negotiation (0)")
-    p.add_argument("--fail", type=failure, action="append", default=[], metavar="AGENT:STEP",
-                   help="robot AGENT fails in step STEP (repeatable; ccp, hcp): survivors re-plan")
-    p.add_argument("--engine", choices=("auto",) + ENGINES, default="auto",
-                   help="step: the reference, every agent every step; event: jumps from decision "
-                        "to decision, same result (default auto: event for big runs, step when "
-                        "a progress bar or a plot needs every step)")
-    p.add_argument("--json", action="store_true", help="print the full result as JSON")
-    p.add_argument("--plot", metavar="PNG", help="also draw the map and every agent's timeline")
-    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                   help="progress bar on stderr (default: when stderr is a terminal)")
+    add_sim_parser(sub)
 
     p = leaf(sub, "schedule", cmd_schedule, help="run only the Coordination algorithm",
               description="Run Algorithm Coordination on a state file "
@@ -116,98 +81,165 @@ def cmd_generate(args: argparse.Namespace) -> int:
 # ----------------------------------------------------------------------------- sim
 
 
+def add_sim_parser(sub) -> None:
+    p = leaf(sub, "sim", cmd_sim, help="simulate a scenario in-process",
+             description="Run a scenario in-process and print the makespan, last delivery and "
+                         "per-agent cost / idle / carry time. Protocols: "
+                         + "; ".join(f"{s.name}: {s.title}" for s in protocols.REGISTRY.values()) + ".")
+    p.add_argument("scenario", help="scenario file (YAML)")
+    p.add_argument("--protocol", choices=protocols.names(), default="ccp", help="cooperation protocol")
+    trig = p.add_mutually_exclusive_group()
+    trig.add_argument("--ci", type=positive, default=1,
+                      help="coordination interval: coordinate when this many found objects are "
+                           "unscheduled (default 1; >= M means after the whole search)")
+    trig.add_argument("--interval", type=positive, help="coordinate every T time steps instead")
+    trig.add_argument("--area-fraction", type=fraction,
+                      help="coordinate each time this fraction of the area is searched instead")
+    add_protocol_options(p)
+    p.add_argument("--agents", type=positive,
+                   help="replace the scenario's team by N agents (default partition and bases)")
+    p.add_argument("--max-steps", type=positive, help="stop after this many steps")
+    p.add_argument("--coordination", choices=ORGANISATIONS, default="distributed",
+                   help="who runs Algorithm Coordination: every agent (distributed, default) or "
+                        "the lowest-id agent, which broadcasts the schedule (coordinator; ccp)")
+    p.add_argument("--partition", choices=("equal", "negotiated"), default="equal",
+                   help="search areas: the paper's equal m×n partition, or negotiated among the "
+                        "robots by speed and private forbidden zones (ost negotiate partition)")
+    p.add_argument("--partition-seed", type=natural, default=0, help="seed of that negotiation (0)")
+    p.add_argument("--fail", type=failure, action="append", default=[], metavar="AGENT:STEP",
+                   help="robot AGENT fails in step STEP (repeatable; protocols that recover: "
+                        + ", ".join(n for n, s in protocols.REGISTRY.items() if s.capabilities.recovers_failures)
+                        + "): survivors re-plan")
+    p.add_argument("--engine", choices=("auto", *ENGINES), default="auto",
+                   help="step: the reference, every agent every step; event: jumps from decision "
+                        "to decision, same result (default auto: event for big runs, step when "
+                        "a progress bar or a plot needs every step)")
+    p.add_argument("--json", action="store_true", help="print the full result as JSON")
+    p.add_argument("--plot", metavar="PNG", help="also draw the map and every agent's timeline")
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="progress bar on stderr (default: when stderr is a terminal)")
+
+
+def add_protocol_options(p: argparse.ArgumentParser) -> None:
+    """Every protocol's own options (the registry's), as flags."""
+    for spec in protocols.REGISTRY.values():
+        for opt in spec.options:
+            default = protocols.option_default(spec, opt)
+            p.add_argument(opt.flag, dest=opt.name, type=type(default), default=None,
+                           help=f"{spec.name.upper()}: {opt.help} (default {default})")
+
+
+def protocol_settings(args: argparse.Namespace) -> Any:
+    """The chosen protocol's settings from its flags (one-line error for a bad value)."""
+    try:
+        return protocols.settings_from(args.protocol, vars(args))
+    except protocols.ProtocolError as exc:
+        raise UsageError(str(exc)) from None
+
+
 def cmd_sim(args: argparse.Namespace) -> int:
-    if args.ncp_delta >= 1.0:
-        raise UsageError(f"--ncp-delta must be below 1, got {args.ncp_delta:g}")
-    ncp = NegotiationSettings(delta=args.ncp_delta, timeout_rounds=args.ncp_timeout)
+    settings = protocol_settings(args)
     scenario = load_scenario_arg(args.scenario, args.agents)
     policy = CoordinationPolicy(ci=args.ci, interval=args.interval, area_fraction=args.area_fraction,
                                 organisation=args.coordination)
-    if policy.centralised and args.protocol != "ccp":
-        raise UsageError(f"--coordination coordinator: for ccp only (not {args.protocol})")
+    failures = dict(args.fail)
+    if len(failures) != len(args.fail):
+        raise UsageError("--fail: an agent can fail only once")
+    _check_protocol(args, policy=policy)
     if args.partition == "negotiated":
-        if args.protocol == "hcp":
-            raise UsageError("--partition negotiated: HCP owns objects by the equal partition's "
-                             "subareas; use --protocol ccp or ncp")
-        from ost_ros.negotiation.errors import NegotiationError
-        from ost_ros.negotiation.partition import negotiated_scenario
+        scenario = _negotiated(args, scenario)
+    _check_protocol(args, scenario=scenario, where=args.scenario)
+    if failures:
         try:
-            scenario = negotiated_scenario(scenario, seed=args.partition_seed)[0]
-        except (NegotiationError, ScenarioError) as exc:
-            raise UsageError(f"--partition negotiated: {exc}") from None
-    if any(a.sweep for a in scenario.agents) and args.protocol == "hcp":
-        raise UsageError(f"{args.scenario}: its robots have their own sweeps (a negotiated "
-                         "partition); HCP owns objects by the equal partition: use ccp or ncp")
-    if scenario.heterogeneous and args.protocol == "hcp":
-        raise UsageError(f"{args.scenario}: HCP runs unit-speed teams only (some agent has a "
-                         "period other than 1); use --protocol ccp or ncp")
+            check_failures(scenario, args.protocol, failures, policy)
+        except ValueError as exc:
+            raise UsageError(f"--fail: {exc}") from None
+    engine = _sim_engine(args, scenario, policy, failures)
+    hooks, bar, timeline = _step_hooks(args, scenario, engine)
+    try:
+        result = simulate(scenario, args.protocol, policy, max_steps=args.max_steps,
+                          on_step=_each(hooks) if hooks else None, engine=engine, settings=settings,
+                          failures=failures)
+    finally:
+        if bar is not None:
+            bar.close()
+    result.lower_bound = lower_bound(scenario).value
+    if timeline is not None:
+        from ost_ros.plot import plot_run
+        try:
+            plot_run(scenario, result, timeline, args.plot)
+        except OSError as exc:
+            raise UsageError(f"{args.plot}: cannot write ({exc.strerror})") from None
+    print(json.dumps(result.to_dict(), indent=1) if args.json else result.summary())
+    return 0 if result.completed else 1
+
+
+def _check_protocol(args: argparse.Namespace, where: str = "", **what: Any) -> None:
+    try:
+        protocols.check(args.protocol, **what)
+    except protocols.ProtocolError as exc:
+        raise UsageError(f"{where}: {exc}" if where else str(exc)) from None
+
+
+def _negotiated(args: argparse.Namespace, scenario: Scenario) -> Scenario:
+    """The scenario with search areas negotiated among its robots."""
+    if not protocols.get(args.protocol).capabilities.own_sweeps:
+        able = ", ".join(n for n, s in protocols.REGISTRY.items() if s.capabilities.own_sweeps)
+        raise UsageError(f"--partition negotiated: {args.protocol} cannot run robots with their own "
+                         f"sweeps; use --protocol {' or '.join(able.split(', '))}")
+    from ost_ros.negotiation.errors import NegotiationError
+    from ost_ros.negotiation.partition import negotiated_scenario
+    try:
+        return negotiated_scenario(scenario, seed=args.partition_seed)[0]
+    except (NegotiationError, ScenarioError) as exc:
+        raise UsageError(f"--partition negotiated: {exc}") from None
+
+
+def _sim_engine(args: argparse.Namespace, scenario: Scenario, policy: CoordinationPolicy,
+                failures: dict[int, int]) -> str:
+    """The engine to run on: the one asked for; auto picks the event engine for big runs unless a
+    plot or a progress bar needs every step; failures and the coordinator need the step engine."""
+    for flag, needs_steps in (("--fail: robot failures run", bool(failures)),
+                              ("--coordination coordinator runs", policy.centralised)):
+        if needs_steps and args.engine == "event":
+            raise UsageError(f"{flag} on the step engine (--engine step)")
+        if needs_steps:
+            return "step"
+    if args.engine == "auto":
+        return "step" if (args.plot or args.progress) else choose_engine(scenario)
+    return str(args.engine)
+
+
+def _step_hooks(args: argparse.Namespace, scenario: Scenario, engine: str):
+    """What watches every step (only the step engine has steps): the plot's timeline and the
+    progress bar."""
+    from ost_ros.plot import Timeline
+
+    hooks: list[StepHook] = []
+    timeline = Timeline() if args.plot else None
+    if timeline is not None:
+        hooks.append(timeline)
     show = sys.stderr.isatty() if args.progress is None else args.progress
     bar = None
-    hooks = []
-    if args.plot:
-        from ost_ros.plot import Timeline
-        timeline = Timeline()
-        hooks.append(timeline)
-    if show:
+    if show and engine == "step":
         from tqdm import tqdm
-        total = len(scenario.objects)
-        bar = tqdm(total=total, desc="delivered", unit="obj", file=sys.stderr, leave=False)
+        bar = tqdm(total=len(scenario.objects), desc="delivered", unit="obj", file=sys.stderr, leave=False)
 
-        def progress(world, _actions):
+        def progress(world: World, _actions: list) -> None:
             done = sum(o.delivered is not None for o in world.objects.values())
             if done != bar.n:
                 bar.update(done - bar.n)
             if world.t % 500 == 0:
                 bar.set_postfix(step=world.t, refresh=False)
         hooks.append(progress)
+    return hooks, bar, timeline
 
-    def on_step(world, actions):
+
+def _each(hooks: list[StepHook]) -> StepHook:
+    def on_step(world: World, actions: list) -> None:
         for hook in hooks:
             hook(world, actions)
-    # The event engine has no steps to show: a plot or an asked-for bar keeps the reference.
-    engine = args.engine
-    if engine == "auto":
-        engine = "step" if (args.plot or args.progress) else choose_engine(scenario)
-    if engine == "event" and bar is not None:
-        bar.close()
-        bar = None
-        hooks = [h for h in hooks if h is not progress]
-    if policy.centralised:
-        if args.engine == "event":
-            raise UsageError("--coordination coordinator runs on the step engine (--engine step)")
-        if args.fail:
-            raise UsageError("--fail: the coordinator organisation does not recover from failures")
-        engine = "step"
-    failures = dict(args.fail)
-    if len(failures) != len(args.fail):
-        raise UsageError("--fail: an agent can fail only once")
-    if failures:
-        if args.engine == "event":
-            raise UsageError("--fail: robot failures run on the step engine (--engine step)")
-        engine = "step"
-        try:
-            check_failures(scenario, args.protocol, failures)
-        except ValueError as exc:
-            raise UsageError(f"--fail: {exc}") from None
-    try:
-        result = simulate(scenario, args.protocol, policy, max_steps=args.max_steps,
-                          on_step=on_step if hooks else None, engine=engine, ncp=ncp,
-                          failures=failures)
-    finally:
-        if bar is not None:
-            bar.close()
-    result.lower_bound = lower_bound(scenario).value
-    if args.plot:
-        from ost_ros.plot import plot_run
-        try:
-            plot_run(scenario, result, timeline, args.plot)
-        except OSError as exc:
-            raise UsageError(f"{args.plot}: cannot write ({exc.strerror})") from None
-    if args.json:
-        print(json.dumps(result.to_dict(), indent=1))
-    else:
-        print(result.summary())
-    return 0 if result.completed else 1
+    return on_step
 
 
 # ----------------------------------------------------------------------------- schedule

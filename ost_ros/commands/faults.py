@@ -14,8 +14,12 @@ import time
 from pathlib import Path
 
 from ost_ros.commands.args import at_least, leaf
+from ost_ros.coordination import CoordinationPolicy
+from ost_ros.engines import simulate
 from ost_ros.errors import UsageError
-from ost_ros.faults import FaultRow, HEADER, in_process_rows, markdown
+from ost_ros.faults import HEADER, FaultRow, in_process_rows, markdown
+from ost_ros.model import Grid
+from ost_ros.scenario import dump_scenario, generate_scenario
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -76,11 +80,6 @@ def _stamp(text: str, pattern: str) -> float | None:
 
 
 def dds_rows() -> list[FaultRow]:
-    from ost_ros.coordination import CoordinationPolicy
-    from ost_ros.model import Grid
-    from ost_ros.scenario import dump_scenario, generate_scenario
-    from ost_ros.simulator import simulate
-
     name = "DDS: N=4 M=8 30×12 nmax=3"
     scenario = generate_scenario(4, 8, 1, Grid(30, 12), 3)
     rows: list[FaultRow] = []

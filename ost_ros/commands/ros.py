@@ -30,7 +30,7 @@ def _seconds(text: str) -> float:
 
 
 def register(sub) -> None:
-    from ost_ros.cli import OneLineParser
+    from ost_ros.commands.args import OneLineParser
 
     ros = sub.add_parser("ros", help="inspect a running ROS 2 graph (topics, nodes)",
                          description="Inspect the ROS 2 graph like ros2cli: topic list/echo/hz, "

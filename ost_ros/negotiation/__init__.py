@@ -1,7 +1,8 @@
 """Negotiation-based task subdivision and allocation (Rossi, Aldama, Barrientos 2015).
 
 ROS-free: tasks (areas, target points), private rewards, Rubinstein's alternating offers,
-proposal search, multi-party strategies, an exact solver for the target-point tables, and
+proposal search, multi-party strategies, an exact solver for the target-point tables, the slot
+negotiation (targets that need several robots; NCP allocates OST objects with it), and
 negotiated search subareas for OST teams of different speeds (``partition``).
 Offers travel as plain data (``messages``) so a transport can carry them unchanged.
 
@@ -20,7 +21,8 @@ _EXPORTS = {
     "NegotiationResult": "multiparty", "negotiate": "multiparty", "Offer": "messages",
     "AreaSearch": "proposals", "optimal_allocation": "optimal",
     "SearchRobot": "partition", "SearchTeam": "partition", "negotiate_partition": "partition",
-    "negotiated_scenario": "partition",
+    "negotiated_scenario": "partition", "SlotNegotiation": "slots", "NegotiationSettings": "slots",
+    "negotiate_slots": "slots",
 }
 __all__ = sorted(_EXPORTS)
 

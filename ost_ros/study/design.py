@@ -3,11 +3,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ost_ros.model import Grid
+from ost_ros import protocols
+from ost_ros.model import Grid, Scenario
 from ost_ros.scenario import build_scenario, generate_objects
 
 GRID = Grid(500, 200)
 NMAX = 10
+PAPER = "ccp"   # the protocol the paper studies at every N and over the CI sweep (Figs 9–11, Table 3)
 
 
 @dataclass(frozen=True)
@@ -19,7 +21,16 @@ class Variant:
 
     @property
     def label(self) -> str:
-        return "HCP" if self.protocol == "hcp" else f"{self.protocol.upper()} CI={self.ci}"
+        name = self.protocol.upper()
+        return name if self.ci is None else f"{name} CI={self.ci}"
+
+
+def compared() -> list[Variant]:
+    """Every protocol of the registry as the study compares them at the compare sizes: those
+    without coordination triggers (HCP) first, then each with triggers at CI=1 and CI=M."""
+    specs = sorted(protocols.REGISTRY.values(), key=lambda s: s.capabilities.triggers)
+    return [v for s in specs for v in ([Variant(s.name, 1), Variant(s.name, "M")]
+                                       if s.capabilities.triggers else [Variant(s.name)])]
 
 
 @dataclass(frozen=True)
@@ -35,8 +46,8 @@ class Task:
     @property
     def weight(self) -> float:
         """Rough relative cost, to start the heavy tasks first."""
-        hcp = any(v.protocol == "hcp" for v in self.variants)
-        return (1 + self.objects) * (self.agents if hcp else 0.05 * len(self.variants))
+        stepped = any(protocols.get(v.protocol).team_comm is None for v in self.variants)
+        return (1 + self.objects) * (self.agents if stepped else 0.05 * len(self.variants))
 
 
 @dataclass(frozen=True)
@@ -61,17 +72,16 @@ class Design:
         out = []
         for n in self.agents:
             for m in self.objects:
-                variants = [Variant("ccp", 1), Variant("ccp", "M")]
+                variants = [Variant(PAPER, 1), Variant(PAPER, "M")]
                 if n in self.compare_agents:
-                    variants.append(Variant("hcp"))
-                    # NCP (negotiated allocation, not in the paper) as a third curve
-                    variants.extend((Variant("ncp", 1), Variant("ncp", "M")))
-                    variants.extend(Variant("ccp", c) for c in self.cis if c != 1)
+                    # every other protocol of the registry (ours beside the paper's HCP)
+                    variants.extend(v for v in compared() if v.protocol != PAPER)
+                    variants.extend(Variant(PAPER, c) for c in self.cis if c != 1)
                 for s in range(self.sets):
                     out.append(Task(n, m, s, self.object_seed(m, s), tuple(variants)))
         return sorted(out, key=lambda t: -t.weight)
 
 
-def scenario_of(task: Task):
+def scenario_of(task: Task) -> Scenario:
     objects = generate_objects(task.objects, task.seed, GRID, NMAX)
     return build_scenario(GRID, objects, n_agents=task.agents, nmax=NMAX)

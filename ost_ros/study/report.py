@@ -6,8 +6,9 @@ import statistics
 from collections import defaultdict
 from pathlib import Path
 
+from ost_ros import protocols
 from ost_ros.optimal import search_space_order
-from ost_ros.study.design import Design
+from ost_ros.study.design import PAPER, Design, compared
 from ost_ros.study.paper import TABLE1, TABLE3, TABLE3_AGENTS
 from ost_ros.study.runner import Row, Timing, row_dicts
 
@@ -69,9 +70,9 @@ def plots(out: Path, design: Design, c: dict) -> list[str]:
     files = []
     for fig, n in (("fig7", 10), ("fig8", 50)):
         if n in design.compare_agents:
-            _plot(out / f"{fig}.png", f"HCP vs CCP (and NCP), N={n}", ms,
-                  {v: [c.get((n, m, v)) for m in ms]
-                   for v in ("HCP", "CCP CI=1", "CCP CI=M", "NCP CI=1", "NCP CI=M")})
+            labels = [v.label for v in compared()]
+            _plot(out / f"{fig}.png", f"The protocols compared, N={n}", ms,
+                  {v: [c.get((n, m, v)) for m in ms] for v in labels})
             files.append(f"{fig}.png")
     for fig, n in (("fig9", 10), ("fig10", 50)):
         if n in design.compare_agents:
@@ -262,8 +263,7 @@ def _markdown(design, c, rows, timing, quick, t1, t3, figs, claims) -> str:
     L.append("")
     L.append("## Mean execution time (steps), Figs 7–11")
     L.append("")
-    variants = sorted({k[2] for k in c}, key=lambda v: (v != "HCP", v.startswith("NCP"), v[-1] != "M",
-                                                         int(v.split("=")[1]) if v[-1].isdigit() else 0))
+    variants = sorted({k[2] for k in c}, key=_column)
     for n in design.agents:
         present = [v for v in variants if any((n, m, v) in c for m in design.objects)]
         L.append(f"**N = {n}**")
@@ -274,7 +274,9 @@ def _markdown(design, c, rows, timing, quick, t1, t3, figs, claims) -> str:
             L.append(f"| {m} | " + " | ".join(_fmt(round(c[(n, m, v)])) if (n, m, v) in c else "–"
                                              for v in present) + " |")
         L.append("")
-    L.extend(_ncp_section(design, c))
+    for spec in protocols.REGISTRY.values():   # our protocols beside the paper's
+        if spec.name != PAPER and spec.capabilities.triggers:
+            L.extend(_beside_paper(design, c, spec))
     L.append("## Table 1: order of the Optimal-OST search space, N = 10")
     L.append("")
     L.append("| M | ours: log10(M!·E[C(10,i)]^M) | paper |")
@@ -288,18 +290,26 @@ def _markdown(design, c, rows, timing, quick, t1, t3, figs, claims) -> str:
     return "\n".join(L) + "\n"
 
 
-def _ncp_section(design: Design, c: dict) -> list[str]:
-    """NCP next to CCP at the same CI: mean time ratio per (N, CI), and where NCP wins."""
-    L = ["## NCP (negotiated allocation) next to CCP", "",
-         "Not in the paper: at each coordination point the found objects are allocated by the "
-         "target-points negotiation (docs/interpretation.md, NCP) and the agreed groups are "
-         "executed like a CCP schedule. Ratio = mean NCP time / mean CCP time at the same CI.", "",
-         "| N | CI | M: ratio NCP/CCP | NCP faster in |", "|---|---|---|---|"]
+def _column(variant: str) -> tuple:
+    """Table column order: protocols without triggers (HCP), the paper's, then ours; CI=M first."""
+    names = list(protocols.REGISTRY)
+    spec = protocols.get(variant.split()[0].lower())
+    ci = variant.partition("=")[2]
+    return (spec.capabilities.triggers, spec.name != PAPER, names.index(spec.name), ci != "M",
+            int(ci) if ci.isdigit() else 0)
+
+
+def _beside_paper(design: Design, c: dict, spec: protocols.ProtocolSpec) -> list[str]:
+    """A protocol next to CCP at the same CI: mean time ratio per (N, CI), and where it wins."""
+    name, base = spec.name.upper(), PAPER.upper()
+    L = [f"## {name} ({spec.label}) next to {base}", "",
+         f"{spec.note} Ratio = mean {name} time / mean {base} time at the same CI.", "",
+         f"| N | CI | M: ratio {name}/{base} | {name} faster in |", "|---|---|---|---|"]
     for n in design.compare_agents:
         for ci in ("1", "M"):
             cells, wins, total = [], 0, 0
             for m in design.objects:
-                a, b = c.get((n, m, f"NCP CI={ci}")), c.get((n, m, f"CCP CI={ci}"))
+                a, b = c.get((n, m, f"{name} CI={ci}")), c.get((n, m, f"{base} CI={ci}"))
                 if a is None or b is None or b == 0:
                     continue
                 total += 1

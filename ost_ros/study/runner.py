@@ -10,7 +10,8 @@ from multiprocessing import get_context
 
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy
-from ost_ros.events import simulate_events
+from ost_ros.engines import simulate
+from ost_ros.result import RunResult
 from ost_ros.study.design import Design, Task, scenario_of
 
 
@@ -36,22 +37,23 @@ def run_task(task: Task) -> tuple[list[Row], float]:
     scenario = scenario_of(task)
     bound = lower_bound(scenario).value
     rows = []
-    done: dict[tuple[str, int], object] = {}
+    done: dict[tuple[str, int], RunResult] = {}
     for v in task.variants:
-        if v.protocol == "hcp":
-            r = simulate_events(scenario, "hcp")
+        if v.ci is None:   # a protocol without coordination triggers
+            r = simulate(scenario, v.protocol, engine="event")
         else:
             ci = task.objects if v.ci == "M" else int(v.ci)
             # Every CI > M is the same run (coordination only once everyone has searched).
             ci = min(max(ci, 1), task.objects + 1)
             if (v.protocol, ci) not in done:
-                done[(v.protocol, ci)] = simulate_events(scenario, v.protocol, CoordinationPolicy(ci=ci))
+                done[(v.protocol, ci)] = simulate(scenario, v.protocol, CoordinationPolicy(ci=ci),
+                                                  engine="event")
             r = done[(v.protocol, ci)]
         if not r.completed or r.rejections or r.warnings:
             raise RuntimeError(f"{v.label} on N={task.agents} M={task.objects} set {task.set}: "
                                f"{r.error or (r.rejections + r.warnings)[:1]}")
         rows.append(Row(task.agents, task.objects, task.set, task.seed, v.label, v.protocol,
-                        "" if v.ci is None else str(v.ci), int(r.makespan), r.last_delivery, bound,
+                        "" if v.ci is None else str(v.ci), int(r.makespan or 0), r.last_delivery, bound,
                         r.messages, r.coordinations))
     return rows, time.process_time() - cpu
 

@@ -4,7 +4,7 @@ from hypothesis import given, settings, strategies as st
 
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy
-from ost_ros.events import simulate_events
+from ost_ros.engines import simulate_events
 from ost_ros.model import Grid, ObjectSpec
 from ost_ros.scenario import build_scenario, generate_scenario
 from strategies import scenarios

@@ -118,7 +118,7 @@ def test_bad_scenario_one_line_exit_2(tmp_path, name):
     (["sim", "x.yaml", "--ci", 0], "--ci"),
     (["sim", "x.yaml", "--ci", 2, "--interval", 5], "not allowed with"),
     (["sim", "x.yaml", "--protocol", "xyz"], "--protocol"),
-    (["sim", "x.yaml", "--protocol", "ncp", "--ncp-delta", 1], "--ncp-delta must be below 1"),
+    (["sim", "x.yaml", "--protocol", "ncp", "--ncp-delta", 1], "--ncp-delta: NCP discount factor must be in (0, 1)"),
     (["sim", "x.yaml", "--protocol", "ncp", "--ncp-delta", 0], "--ncp-delta"),
     (["sim", "x.yaml", "--protocol", "ncp", "--ncp-timeout", 0], "--ncp-timeout"),
     (["schedule", "missing.json"], "missing.json: no such file"),

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 
 from ost_ros.coordination import CoordinationPolicy
-from ost_ros.simulator import simulate
+from ost_ros.engines import simulate
 from strategies import policies, scenarios
 
 

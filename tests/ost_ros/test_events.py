@@ -4,11 +4,12 @@ message and coordination counts — for CCP under every trigger kind, and for HC
 from hypothesis import given, settings, strategies as st
 
 from ost_ros.coordination import CoordinationPolicy
-from ost_ros.events import first_sensing, simulate_events
+from ost_ros.engines import simulate_events
+from ost_ros.sensing import first_sensing
 from ost_ros.model import Grid
 from ost_ros.partition import choose_partition
 from ost_ros.scenario import build_scenario, generate_objects, generate_scenario
-from ost_ros.simulator import choose_engine, simulate
+from ost_ros.engines import choose_engine, simulate
 
 import numpy as np
 from strategies import policies, scenarios

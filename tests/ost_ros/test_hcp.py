@@ -7,7 +7,8 @@ from hypothesis import given, settings, strategies as st
 
 from ost_ros.model import Grid, ObjectSpec, manhattan
 from ost_ros.scenario import build_scenario, generate_objects
-from ost_ros.simulator import finish_result, make_agents, simulate
+from ost_ros.engines import finish_result, simulate
+from ost_ros.protocols import make_agents
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.world import World
 from strategies import scenarios
@@ -42,7 +43,7 @@ def test_help_request_offer_accept_round():
         for ag in agents:
             ag.communicate(world.t, inbox)
         world.apply(actions)
-    r = finish_result(world, agents, "hcp", CoordinationPolicy(), len(kinds))
+    r = finish_result(world, agents, len(kinds))
     assert r.completed and r.rejections == [] and r.warnings == []
     assert kinds.index("HelpRequest") < kinds.index("HelpOffer") < kinds.index("HelpAccept")
     assert r.objects[0].agents == (0, 1)
@@ -80,7 +81,7 @@ def _run_shuffled(scenario, seed):
             rng.shuffle(mine)   # over DDS every agent may see another order
             ag.communicate(world.t, mine)
         world.apply(actions)
-    return finish_result(world, agents, "hcp", CoordinationPolicy(), 0)
+    return finish_result(world, agents, 0)
 
 
 @settings(max_examples=25)

@@ -8,11 +8,11 @@ from hypothesis import given, settings, strategies as st
 
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy, coordinate
-from ost_ros.events import simulate_events
+from ost_ros.engines import simulate_events
 from ost_ros.model import AgentSpec, Grid, ObjectSpec, arrival, can_move, group_period
 from ost_ros.scenario import (ScenarioError, build_scenario, dump_scenario, generate_objects,
                               scenario_from_dict, scenario_to_dict)
-from ost_ros.simulator import simulate
+from ost_ros.engines import simulate
 from strategies import policies, scenarios
 
 
@@ -87,5 +87,5 @@ def test_period_in_files_and_errors():
     d["agents"][0]["period"] = 0
     with pytest.raises(ScenarioError, match=r"agents\[0\].period"):
         scenario_from_dict(d)
-    with pytest.raises(ValueError, match="HCP runs unit-speed teams only"):
+    with pytest.raises(ValueError, match="hcp runs unit-speed teams only"):
         simulate(s, "hcp")

@@ -8,13 +8,14 @@ from hypothesis import given, settings
 
 from ost_msgs_py.messages import NegotiationOffer
 from ost_ros.coordination import Assignment, CoordinationPolicy, order_groups
-from ost_ros.events import simulate_events
+from ost_ros.engines import simulate_events
 from ost_ros.model import Grid, ObjectSpec, manhattan
-from ost_ros.ncp import (NcpAgent, NegotiationSettings, SlotNegotiation, claim_cap, decide,
-                         protected)
+from ost_ros.negotiation.slots import (NegotiationSettings, SlotNegotiation, claim_cap, decide,
+                                       protected)
+from ost_ros.protocols import make_agents
+from ost_ros.protocols.ncp import SPEC as NCP
 from ost_ros.scenario import build_scenario, generate_objects, generate_scenario
-from ost_ros.simulator import finish_result, simulate
-from ost_ros.team import TeamInfo
+from ost_ros.engines import finish_result, simulate
 from ost_ros.world import World
 from strategies import policies, scenarios
 
@@ -116,16 +117,14 @@ def run_agents(scenario, agents, policy):
         for ag in agents:
             ag.communicate(world.t, inbox)
         world.apply(actions)
-    return finish_result(world, agents, "ncp", policy, messages)
+    return finish_result(world, agents, messages)
 
 
 def test_silent_negotiator_is_timed_out_and_the_others_conclude():
     s = build_scenario(Grid(30, 12), generate_objects(8, 3, Grid(30, 12), 2), n_agents=4, nmax=2)
-    team = TeamInfo.from_scenario(s)
     policy = CoordinationPolicy(ci=3)
-    settings_ = NegotiationSettings(timeout_rounds=2)
-    agents = [NcpAgent(a.id, team, policy, settings_, mute_from=0 if a.id == 2 else None)
-              for a in s.agents]
+    agents = make_agents(s, "ncp", policy, NegotiationSettings(timeout_rounds=2))
+    NCP.silence(agents[2], 0)
     r = run_agents(s, agents, policy)
     assert r.completed and r.agreement and r.rejections == []
     assert all(2 not in a.agents for a in r.schedule)          # it never got a slot

@@ -9,7 +9,7 @@ from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid, ObjectSpec, manhattan
 from ost_ros.optimal import optimal_schedule, post_search_problem, search_space_order
 from ost_ros.scenario import build_scenario, generate_objects
-from ost_ros.simulator import simulate
+from ost_ros.engines import simulate
 
 
 def brute_force(cost, loc, bases, objects):

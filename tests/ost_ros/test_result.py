@@ -3,7 +3,7 @@ from ost_ros.bounds import lower_bound
 from ost_ros.model import Grid
 from ost_ros.result import RunResult
 from ost_ros.scenario import generate_scenario
-from ost_ros.simulator import simulate
+from ost_ros.engines import simulate
 
 
 def test_round_trip():

@@ -166,7 +166,7 @@ class Processes:
 def reference(scenario, protocol: str, policy) -> dict:
     """What ``ost sim --json`` prints for the scenario: the in-process result and its bound."""
     from ost_ros.bounds import lower_bound
-    from ost_ros.simulator import simulate
+    from ost_ros.engines import simulate
 
     expected = simulate(scenario, protocol, policy).to_dict()
     expected["lower_bound"] = lower_bound(scenario).value

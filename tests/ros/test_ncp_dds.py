@@ -9,10 +9,10 @@ from dds_helpers import ost_up, reference, result_json
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
-from ost_ros.ncp import NcpAgent, NegotiationSettings
 from ost_ros.scenario import dump_scenario, generate_scenario
-from ost_ros.simulator import finish_result
-from ost_ros.team import TeamInfo
+from ost_ros.engines import finish_result
+from ost_ros.protocols import make_agents
+from ost_ros.protocols.ncp import SPEC as ncp
 from ost_ros.world import World
 
 
@@ -33,9 +33,8 @@ def test_ncp_over_dds_equals_ost_sim(tmp_path, ci):
 
 
 def in_process_with_mute(scenario, policy, silent: int, step: int) -> dict:
-    team = TeamInfo.from_scenario(scenario)
-    agents = [NcpAgent(a.id, team, policy, NegotiationSettings(),
-                       mute_from=step if a.id == silent else None) for a in scenario.agents]
+    agents = make_agents(scenario, "ncp", policy)
+    ncp.silence(agents[[a.id for a in scenario.agents].index(silent)], step)
     world, messages = World(scenario), 0
     while not world.done and world.t < 50_000:
         actions = [ag.act(world.observe(ag.id)) for ag in agents]
@@ -44,7 +43,7 @@ def in_process_with_mute(scenario, policy, silent: int, step: int) -> dict:
         for ag in agents:
             ag.communicate(world.t, inbox)
         world.apply(actions)
-    out = finish_result(world, agents, "ncp", policy, messages).to_dict()
+    out = finish_result(world, agents, messages).to_dict()
     out["lower_bound"] = lower_bound(scenario).value
     return out
 

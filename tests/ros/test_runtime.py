@@ -11,7 +11,8 @@ from ost_msgs_py.runtime import Acted, AgentReport, Resend, RunEnd, StepMessages
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
 from ost_ros.scenario import generate_scenario
-from ost_ros.simulator import PROTOCOLS, make_agents, simulate
+from ost_ros.engines import simulate
+from ost_ros.protocols import make_agents, names
 from world_node.runtime import WorldRuntime
 
 
@@ -23,7 +24,7 @@ def run(scenario, protocol, policy, lookahead, skipping, kill=None):
     """``kill`` = {agent: step}: the agent's process is gone from the first tick at or after
     that step (with skipping, the world may be past it: then it fails later, as over DDS)."""
     ids = tuple(a.id for a in scenario.agents)
-    rts = {a.id: AgentRuntime(a, ids, policy.name, lookahead)
+    rts = {a.id: AgentRuntime(a, ids, lookahead)
            for a in make_agents(scenario, protocol, policy)}
     world = WorldRuntime(scenario, skipping=skipping, protocol=protocol)
     nxt = world.start()
@@ -55,7 +56,7 @@ def run(scenario, protocol, policy, lookahead, skipping, kill=None):
 CASES = [(4, 6, 1, 30, 12, 1), (4, 6, 1, 30, 12, 6), (10, 15, 2, 40, 20, 1), (6, 12, 5, 36, 18, 3)]
 
 
-@pytest.mark.parametrize("protocol", PROTOCOLS)
+@pytest.mark.parametrize("protocol", names())
 @pytest.mark.parametrize("n, m, seed, w, h, ci", CASES)
 def test_skipping_on_and_off_equal_simulate(protocol, n, m, seed, w, h, ci):
     scenario = generate_scenario(n, m, seed, Grid(w, h), 4)
@@ -75,7 +76,7 @@ def test_out_of_turn_messages_are_refused():
     scenario = generate_scenario(2, 2, 1, Grid(12, 6), 2)
     ids = (0, 1)
     agents = make_agents(scenario, "ccp", CoordinationPolicy())
-    rt = AgentRuntime(agents[0], ids, "CI=1")
+    rt = AgentRuntime(agents[0], ids)
     world = WorldRuntime(scenario)
     ticks = world.start()
     with pytest.raises(ProtocolViolation, match="this is agent 0"):
@@ -98,7 +99,7 @@ def run_lossy(scenario, protocol, policy, lose):
     """Like ``run``, but ``lose(k)`` drops the k-th delivery; on a stall the recovery the nodes do
     on their timers runs: the world re-sends ticks / run_end, agents ask for missing batches."""
     ids = tuple(a.id for a in scenario.agents)
-    rts = {a.id: AgentRuntime(a, ids, policy.name, 64) for a in make_agents(scenario, protocol, policy)}
+    rts = {a.id: AgentRuntime(a, ids, 64) for a in make_agents(scenario, protocol, policy)}
     world = WorldRuntime(scenario, skipping=True)
     count = iter(range(10**9))
     lost = 0
@@ -149,7 +150,7 @@ def run_lossy(scenario, protocol, policy, lose):
     raise AssertionError("no progress")
 
 
-@pytest.mark.parametrize("protocol", PROTOCOLS)
+@pytest.mark.parametrize("protocol", names())
 def test_lost_samples_are_recovered_and_change_nothing(protocol):
     # One delivery in five is lost (ticks, answers, batches, run_end, reports, resend requests).
     scenario = generate_scenario(5, 8, 4, Grid(30, 12), 3)
@@ -162,11 +163,12 @@ def test_lost_samples_are_recovered_and_change_nothing(protocol):
 def test_ncp_moves_travel_as_their_own_part():
     from agent_node.runtime import split_batch
     from ost_msgs_py.messages import NegotiationOffer, SearchDone
+    from ost_ros.protocols.ncp import SPEC
 
     move = NegotiationOffer(1, 5, 1, 0, "offer", (3, 4))
-    parts = split_batch(1, 5, [move, SearchDone(1, 5)])
+    parts = split_batch(1, 5, [move, SearchDone(1, 5)], "", SPEC.channels)
     assert [(p.channel, p.parts, len(p.messages)) for p in parts] == [("step", 2, 1), ("negotiation", 2, 1)]
-    assert split_batch(1, 5, [move])[0].parts == 1
+    assert split_batch(1, 5, [move], "", SPEC.channels)[0].parts == 1
     # a receiver waits for every part before running its comm module
     scenario = generate_scenario(2, 2, 1, Grid(12, 6), 2)
     ids = (0, 1)

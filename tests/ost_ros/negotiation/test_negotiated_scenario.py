@@ -14,7 +14,7 @@ from ost_ros.negotiation.proposals import AreaSearch
 from ost_ros.scenario import (ScenarioError, build_scenario, dump_scenario, generate_scenario,
                               scenario_from_dict)
 from ost_ros.search import agent_plan, route
-from ost_ros.simulator import simulate
+from ost_ros.engines import simulate
 
 CHEAP = AreaSearch(population=8, generations=3)   # a cheaper proposal search for tests
 
@@ -64,7 +64,7 @@ def test_scenario_file_round_trip_and_hcp_refused(negotiated):
     again = scenario_from_dict(__import__("yaml").safe_load(dump_scenario(ns)))
     assert again == ns and all(a.sweep for a in again.agents)
     assert again.agents[0].forbidden == ((0, 0, 12, 6),)
-    with pytest.raises(ValueError, match="HCP owns objects"):
+    with pytest.raises(ValueError, match="hcp cannot run robots with their own sweeps"):
         simulate(ns, "hcp")
 
 

@@ -14,21 +14,15 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .errors import NegotiationError
+from ost_ros.commands.args import OneLineParser
+from ost_ros.errors import UsageError
+from ost_ros.negotiation.errors import NegotiationError
 
 TASK_TYPES = ("area", "targets")
 
 
-def _usage_error():
-    from ost_ros.cli import UsageError  # the top-level CLI owns the error type
-
-    return UsageError
-
-
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``negotiate`` and its subcommands to the ``ost`` parser."""
-    from ost_ros.cli import OneLineParser
-
     p = subparsers.add_parser("negotiate", help="negotiation-based task subdivision and allocation (Rossi et al.)",
                               description="Negotiate how to split an area or a set of target points among robots.")
     sub = p.add_subparsers(dest="negotiate_cmd", metavar="CMD", parser_class=OneLineParser)
@@ -82,7 +76,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 # ------------------------------------------------------------------ task files ------------------
 def load_task_file(path: Path) -> dict[str, Any]:
     """Read a YAML/JSON task description into a dict (one-line errors)."""
-    UsageError = _usage_error()
     try:
         text = path.read_text()
     except OSError as exc:
@@ -106,10 +99,10 @@ def build_from_spec(spec: dict[str, Any]):
     """(task, agents, options) from a plain dict: the file format and the flags share it."""
     import numpy as np
 
-    from .agents import AgentSpec
-    from .rewards import AreaReward, TargetReward
-    from .scenarios import ROBOT_START
-    from .tasks import AreaTask, TargetTask, make_task_polygon, polygon_from_vertices
+    from ost_ros.negotiation.agents import AgentSpec
+    from ost_ros.negotiation.rewards import AreaReward, TargetReward
+    from ost_ros.negotiation.scenarios import ROBOT_START
+    from ost_ros.negotiation.tasks import AreaTask, TargetTask, make_task_polygon, polygon_from_vertices
 
     known = {"task", "polygon", "area", "points", "weights", "targets", "robots", "delta", "strategy",
              "seed", "max_rounds", "drop_rule", "start"}
@@ -188,11 +181,9 @@ def _int(v: Any, name: str) -> int:
 
 # ------------------------------------------------------------------ commands --------------------
 def cmd_run(args: argparse.Namespace) -> int:
-    from .multiparty import negotiate
-    from .optimal import evaluate_allocation
-    from .tasks import TargetTask
-
-    UsageError = _usage_error()
+    from ost_ros.negotiation.multiparty import negotiate
+    from ost_ros.negotiation.optimal import evaluate_allocation
+    from ost_ros.negotiation.tasks import TargetTask
     spec: dict[str, Any] = load_task_file(args.file) if args.file else {}
     flags = {"task": args.task, "robots": args.robots, "delta": args.delta, "targets": args.targets,
              "strategy": args.strategy, "seed": args.seed, "max_rounds": args.max_rounds,
@@ -236,9 +227,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
-    from .reproduce import reproduce
-
-    UsageError = _usage_error()
+    from ost_ros.negotiation.reproduce import reproduce
     if args.runs is not None and args.runs < 1:
         raise UsageError(f"--runs must be at least 1, got {args.runs}")
     if args.jobs is not None and args.jobs < 1:
@@ -257,9 +246,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def cmd_partition(args: argparse.Namespace) -> int:
-    from .partition import SearchTeam, apply_flags, negotiate_partition
-
-    UsageError = _usage_error()
+    from ost_ros.negotiation.partition import SearchTeam, apply_flags, negotiate_partition
     for flag, path in (("--plot", args.plot), ("--output", args.output)):
         if path is not None and not path.resolve().parent.is_dir():
             raise UsageError(f"{flag} {path}: directory {path.parent} does not exist")
@@ -271,7 +258,7 @@ def cmd_partition(args: argparse.Namespace) -> int:
         if given:
             raise UsageError(f"--scenario: the team comes from the scenario, not {given[0]}")
         from ost_ros.scenario import ScenarioError, dump_scenario, load_scenario
-        from .partition import negotiated_scenario
+        from ost_ros.negotiation.partition import negotiated_scenario
         try:
             base = load_scenario(args.scenario)
             scenario, result = negotiated_scenario(

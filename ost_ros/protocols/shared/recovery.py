@@ -1,7 +1,6 @@
-"""Recovery from a failed robot (CCP): what every survivor can work out alone from the shared
+"""Recovery from a failed robot: what every survivor can work out alone from the shared
 schedule, with no word from the dead robot — planned = executed makes the past computable.
 
-- :func:`moves_between`: how many moves an agent (or group) of period k makes in steps [a, b);
 - :func:`drop_cell`: where an object lies when a carrier failed in step t (carried since its
   assignment's start along the carry route, held from step t on);
 - :func:`remaining_sweep`: the cells of a sweep that a robot failing in step t never sensed;
@@ -14,15 +13,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ost_ros.model import Cell, arrival, manhattan
+from ost_ros.model import Cell, arrival, manhattan, moves_between
 from ost_ros.search import route
-
-
-def moves_between(a: int, b: int, period: int = 1) -> int:
-    """Steps s in [a, b) with s % period == 0: the moves of an agent walking from step a."""
-    if b <= a:
-        return 0
-    return (b - 1) // period - (a - 1) // period if a > 0 else (b - 1) // period + 1
 
 
 @dataclass(frozen=True)

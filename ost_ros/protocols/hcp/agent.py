@@ -31,25 +31,30 @@ unless the dead agent's part was done, it goes to its heir, the lowest-id surviv
 subarea, swept again (its finds died with it), and the objects it was holding, where the world
 says they fell (``AgentLost.dropped``).
 
-Same per-step interface as :class:`~ost_ros.agent.CcpAgent`: ``act(obs)``, ``outbox()``,
-``communicate(t, messages)``.
+The agent is a :class:`~ost_ros.protocols.base.ProtocolAgent`; its knowledge of requests and
+offers is :class:`~ost_ros.protocols.hcp.comm.HcpComm`.
 """
 from __future__ import annotations
 
 import heapq
-from dataclasses import dataclass, field, replace
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from enum import Enum
 
-from ost_msgs_py.messages import (Action, ActionKind, AgentLost, HelpAccept, HelpOffer, HelpRelease,
-                                  HelpRequest, Observation, ObjectInfo, SearchDone)
-from ost_ros.model import Cell, manhattan
+from ost_msgs_py.messages import (FINISH_STATE, SEARCHING_STATE, Action, ActionKind, AgentLost,
+                                  AgentMessage, HelpAccept, HelpOffer, HelpRelease, HelpRequest,
+                                  ObjectInfo, Observation, SearchDone)
+from ost_ros.model import Cell, manhattan, moves_between
 from ost_ros.motion import step_toward
+from ost_ros.protocols.base import AgentSummary
+from ost_ros.protocols.hcp.comm import HcpComm, HelpGroup
+from ost_ros.protocols.plans import Plan, Segment
 from ost_ros.search import SearchModule, route, sweep_waypoints
 from ost_ros.team import TeamInfo
 
 
 class HcpState(str, Enum):
-    SEARCHING = "SEARCHING"    # sweeping its subarea (sensing own objects)
+    SEARCHING = SEARCHING_STATE   # sweeping its subarea (sensing own objects)
     FETCHING = "FETCHING"      # going to (or standing at) an own object
     REQUESTING = "REQUESTING"  # at an own object, help requested, not yet staffed
     HELPING = "HELPING"        # going to a partner's object
@@ -58,167 +63,12 @@ class HcpState(str, Enum):
     RESUMING = "RESUMING"      # walking back to where the sweep was left
     DECISION = "DECISION"      # own work done or paused: available, waiting
     RETURNING = "RETURNING"    # every part is done: going back to base
-    FINISH = "FINISH"
+    FINISH = FINISH_STATE
 
-
-@dataclass(frozen=True)
-class HelpGroup:
-    """A staffing decision: who carries ``object`` (requester included), taken in step ``t``."""
-
-    object: int
-    agents: tuple[int, ...]
-    t: int
-
-
-def _ordered(msgs, key):
-    """Messages in a fixed order (not the order they arrived in)."""
-    return sorted(msgs, key=key) if len(msgs) > 1 else msgs
-
-
-@dataclass
-class HcpComm:
-    """What an HCP agent knows of the team's requests and offers (the same at every agent)."""
-
-    me: int
-    team: TeamInfo
-    objects: dict[int, ObjectInfo] = field(default_factory=dict)
-    found_at: dict[int, int] = field(default_factory=dict)     # own objects: step found
-    open: dict[int, int] = field(default_factory=dict)          # object -> requester
-    offers: dict[int, dict[int, int]] = field(default_factory=dict)  # object -> {agent: arrival}
-    offered_to: dict[int, int] = field(default_factory=dict)    # agent -> object (standing)
-    groups: list[HelpGroup] = field(default_factory=list)
-    done_parts: set[int] = field(default_factory=set)
-    warnings: list[str] = field(default_factory=list)
-    # CCP-compatible views used by the simulator's result.
-    schedule: list = field(default_factory=list)
-    predicted_makespan: int | None = None
-    coordinations: int = 0
-    # Failures: dead agent -> step; who requested each object; groups broken by a death;
-    # dead agent -> its heir (when it left a part to do).
-    lost: dict[int, int] = field(default_factory=dict)
-    requester: dict[int, int] = field(default_factory=dict)
-    broken: list[tuple[int, HelpGroup]] = field(default_factory=list)   # (dead agent, group)
-    inherited: dict[int, tuple[int, tuple[int, ...]]] = field(default_factory=dict)   # -> (heir, parts)
-    fallen: dict[int, ObjectInfo] = field(default_factory=dict)   # object -> where it was dropped
-
-    def __post_init__(self) -> None:
-        self._ids = frozenset(self.team.agent_ids)
-        # whose subareas each agent owns: its own, then those it inherited
-        self.parts: dict[int, list[int]] = {j: [j] for j in self.team.agent_ids}
-
-    @property
-    def alive(self) -> tuple[int, ...]:
-        return tuple(j for j in self.team.agent_ids if j not in self.lost)
-
-    def _lose(self, agent: int, t: int) -> None:
-        if agent not in self._ids:
-            return
-        self.lost[agent] = t
-        self._ids = self._ids - {agent}
-        for obj in [o for o, r in self.open.items() if r == agent]:
-            self._close(obj)                       # its request: nobody asks for it any more
-        obj = self.offered_to.pop(agent, None)      # its standing offer lapses
-        if obj is not None:
-            self.offers.get(obj, {}).pop(agent, None)
-        latest: dict[int, HelpGroup] = {}
-        for g in self.groups:
-            latest[g.object] = g
-        self.broken.extend((agent, g) for g in latest.values() if agent in g.agents)
-        parts = tuple(self.parts.pop(agent, [agent]))
-        if agent not in self.done_parts and self.alive:
-            heir = self.alive[0]                   # the lowest-id survivor takes its parts
-            self.inherited[agent] = (heir, parts)
-            self.parts[heir].extend(parts)
-            self.done_parts.discard(heir)
-        self.done_parts.discard(agent)
-
-    def _close(self, obj: int) -> None:
-        self.open.pop(obj, None)
-        for agent in self.offers.pop(obj, {}):
-            if self.offered_to.get(agent) == obj:
-                del self.offered_to[agent]
-
-    def receive(self, t: int, messages: list) -> list[HelpGroup]:
-        """Take in the step's messages (by kind, so their order does not matter) and staff every
-        request that has enough standing offers. Returns the groups formed in this step."""
-        by_kind: dict[type, list] = {}
-        for msg in messages:
-            by_kind.setdefault(type(msg), []).append(msg)
-        ids = self._ids
-        for msg in by_kind.get(HelpRelease, ()):
-            if self.open.get(msg.object) == msg.sender:
-                self._close(msg.object)
-        for msg in _ordered(by_kind.get(HelpRequest, ()), lambda m: m.object.id):
-            if msg.sender in ids and msg.object.id not in self.open and msg.object.required > 1:
-                self.open[msg.object.id] = msg.sender
-                self.requester[msg.object.id] = msg.sender
-                self.objects[msg.object.id] = msg.object
-                self.offers[msg.object.id] = {}
-        for msg in _ordered(by_kind.get(HelpOffer, ()), lambda m: (m.object, m.sender)):
-            if (msg.object in self.open and msg.sender in ids and msg.sender not in self.offered_to
-                    and self.open[msg.object] != msg.sender):
-                self.offers[msg.object][msg.sender] = msg.arrival
-                self.offered_to[msg.sender] = msg.object
-        for msg in _ordered(by_kind.get(AgentLost, ()), lambda m: m.agent):
-            for o in msg.dropped:   # where a dead robot's load lies (sensing gives its origin)
-                self.fallen[o.id] = o
-            self._lose(msg.agent, msg.t)
-        for msg in by_kind.get(HelpAccept, ()):
-            self._check_accept(msg)
-        for msg in by_kind.get(SearchDone, ()):
-            if msg.sender in ids:
-                self.done_parts.add(msg.sender)
-        formed = []
-        if HelpOffer not in by_kind:   # staffing changes only with new offers
-            return formed
-        for obj in sorted(self.open):
-            need = self.objects[obj].required - 1
-            offers = self.offers[obj]
-            if len(offers) >= need:
-                partners = sorted(offers, key=lambda a: (offers[a], a))[:need]
-                group = HelpGroup(obj, tuple(sorted(partners + [self.open[obj]])), t)
-                self.groups.append(group)
-                formed.append(group)
-                self._close(obj)
-        return formed
-
-    def _check_accept(self, msg: HelpAccept) -> None:
-        for g in reversed(self.groups):
-            if g.object == msg.object:
-                expected = tuple(a for a in g.agents if a != msg.sender)
-                if tuple(sorted(msg.partners)) != expected:
-                    self.warnings.append(f"agent {msg.sender}: partners {list(msg.partners)} for "
-                                         f"object {msg.object} contradict the offers "
-                                         f"({list(expected)}); ignored")
-                return
-        self.warnings.append(f"agent {msg.sender}: accept for object {msg.object} that was never "
-                             "staffed; ignored")
-
-    def lowest_open(self, exclude: int) -> int | None:
-        """The highest-priority open request not made by ``exclude``."""
-        for o in sorted(self.open) if len(self.open) > 1 else self.open:
-            if self.open[o] != exclude:
-                return o
-        return None
-
-    @property
-    def closed(self) -> bool:
-        return all(j in self.done_parts for j in self.alive)
 
 
 _AVAILABLE = frozenset((HcpState.SEARCHING, HcpState.RESUMING, HcpState.DECISION,
                         HcpState.FETCHING, HcpState.REQUESTING))
-
-
-@dataclass(frozen=True)
-class Quiet:
-    """What an agent will do, unchanged and silent, until something happens (for the event
-    engine): ``kind`` is sweep | walk | wait | hold | carry; ``target`` the cell it walks or
-    carries to (None otherwise); ``steps`` how many steps that lasts (None: until a message)."""
-
-    kind: str
-    target: Cell | None = None
-    steps: int | None = None
 
 
 class HcpAgent:
@@ -243,10 +93,10 @@ class HcpAgent:
         self.helping = False                  # current object is a partner's
         self.offering: int | None = None      # object of my standing offer
         self.part_done_sent = False
-        self._outbox: list = []
+        self._outbox: list[AgentMessage] = []
         self._obs: Observation | None = None
         self.areas = [self.area]              # subareas whose objects it owns (+ inherited)
-        self.sweeps_left: list = []           # inherited subareas still to sweep
+        self.sweeps_left: list[list[Cell]] = []   # inherited subareas still to sweep
         self.claimed: set[int] = set()        # objects it has taken as its own
         self.unsure: set[int] = set()         # inherited objects that may be delivered already
 
@@ -394,11 +244,11 @@ class HcpAgent:
 
     # ------------------------------------------------------------------ step, part 2: talk
 
-    def outbox(self) -> list:
+    def outbox(self) -> list[AgentMessage]:
         out, self._outbox = self._outbox, []
         return out
 
-    def communicate(self, t: int, messages: list) -> None:
+    def communicate(self, t: int, messages: Sequence[AgentMessage]) -> None:
         before = len(self.comm.broken)
         formed = self.comm.receive(t, messages)
         for dead, g in self.comm.broken[before:]:
@@ -470,58 +320,112 @@ class HcpAgent:
                 self._claim(self.comm.fallen.get(oid, self.comm.objects[oid]), t)
                 self.unsure.add(oid)
 
-    # ------------------------------------------------------------------ event engine
+    # ------------------------------------------------------------------ quiet steps
 
-    def quiet(self) -> Quiet | None:
-        """The silent, state-preserving behaviour ``act`` would repeat from the current step while
-        no message arrives, or None if the next act decides something. Mirrors ``_motion`` (the
-        event engine's equality test with the step engine keeps the two in step). A sweep's
-        length is bounded by the engine, which knows where unfound objects lie."""
+    def plan(self, t: int, position: Cell) -> Plan:
+        """The silent steps ``act`` takes from ``t`` while no message arrives — mirrors
+        ``_motion`` state by state, chaining the hand-overs that need no decision (arriving to
+        hold, to carry alone, to sweep on, to finish). Sweeps run to their end: the caller stops
+        them where an own object comes into sensor range (``news``)."""
         if self._outbox or self._offer_target() is not None:
-            return None
-        s, pos = self.state, self.position
-        if s is HcpState.SEARCHING:
-            if (self.own and self.offering is None) or self.sweep_done:
-                return None
-            if pos != self.search.path[self.search.index]:
-                return None
-            return Quiet("sweep", None, len(self.search.path) - 1 - self.search.index)
-        if s is HcpState.DECISION:
-            if self.offering is not None:
-                return Quiet("wait")
-            if self.own or not self.sweep_done or not self.part_done_sent or self.comm.closed:
-                return None
-            return Quiet("wait")
-        if s is HcpState.RESUMING:
-            if self.own and self.offering is None:
-                return None
-            target = self.search.path[self.search.index]
-            return Quiet("walk", target, manhattan(pos, target)) if pos != target else None
-        if s is HcpState.FETCHING:
-            target = self.current.location
-            if pos != target:
-                return Quiet("walk", target, manhattan(pos, target))
-            return Quiet("wait") if self.offering is not None else None
-        if s is HcpState.REQUESTING:
-            return Quiet("wait")
-        if s is HcpState.HELPING:
-            target = self.current.location
-            return Quiet("walk", target, manhattan(pos, target)) if pos != target else None
-        if s is HcpState.WAITING:
-            return Quiet("hold") if pos == self.current.location else None
-        if s is HcpState.MOVING:
-            dest = self.current.destination
-            return Quiet("carry", dest, manhattan(pos, dest)) if pos != dest else None
-        if s is HcpState.RETURNING:
-            return Quiet("walk", self.base, manhattan(pos, self.base)) if pos != self.base else None
-        return Quiet("wait")   # FINISH
+            return ()
+        return tuple(self._segments(self.state, position))
 
-    def skip(self, t: int, position: Cell, sweep_steps: int = 0) -> None:
-        """Catch up after the engine advanced ``sweep_steps`` quiet sweep steps (or others)."""
+    def _segments(self, s: HcpState, pos: Cell) -> list[Segment]:  # noqa: C901 - one branch per state, as _motion
+        H = HcpState
+        if s is H.SEARCHING:
+            if (self.own and self.offering is None) or self.sweep_done:
+                return []
+            return self._sweep(pos)
+        if s is H.DECISION:
+            if self.offering is None and (self.own or not self.sweep_done or not self.part_done_sent
+                                          or self.comm.closed):
+                return []
+            return [Segment("wait", s.value)]
+        if s is H.RESUMING:
+            target = self.search.path[self.search.index]
+            if (self.own and self.offering is None) or pos == target:
+                return []
+            return [self._walk(s, pos, target)] + self._sweep(target, H.SEARCHING)
+        if s is H.FETCHING:
+            assert self.current is not None
+            target = self.current.location
+            if pos == target:
+                return [Segment("wait", s.value)] if self.offering is not None else []
+            out = [self._walk(s, pos, target)]
+            if self.current.id in self.unsure:
+                return out                          # is it still there? looked at on arrival
+            if self.offering is not None:
+                return out + [Segment("wait", s.value)]
+            if self.current.required == 1 and target != self.current.destination:
+                return out + [self._carry(H.MOVING, target)]   # alone: carried at once
+            return out
+        if s is H.REQUESTING:
+            return [Segment("wait", s.value)]
+        if s is H.HELPING:
+            assert self.current is not None
+            target = self.current.location
+            if pos == target:
+                return []
+            return [self._walk(s, pos, target), self._hold()]
+        if s is H.WAITING:
+            assert self.current is not None
+            return [self._hold()] if pos == self.current.location else []
+        if s is H.MOVING:
+            assert self.current is not None
+            return [self._carry(s, pos)] if pos != self.current.destination else []
+        if s is H.RETURNING:
+            if pos == self.base:
+                return []
+            return [self._walk(s, pos, self.base), Segment("wait", H.FINISH.value)]
+        return [Segment("wait", s.value)]   # FINISH
+
+    def _sweep(self, pos: Cell, state: HcpState = HcpState.SEARCHING) -> list[Segment]:
+        """On along the sweep from ``pos`` (its current cell) to the last cell, where it decides."""
+        path, i = self.search.path, self.search.index
+        if pos != path[i] or i >= len(path) - 1:
+            return []
+        return [Segment("sweep", state.value, len(path) - 1 - i, path=path, index=i)]
+
+    def _walk(self, state: HcpState, pos: Cell, target: Cell) -> Segment:
+        return Segment("walk", state.value, manhattan(pos, target), target=target)
+
+    def _hold(self) -> Segment:
+        assert self.current is not None
+        return Segment("hold", HcpState.WAITING.value, target=self.current.destination,
+                       object=self.current.id)
+
+    def _carry(self, state: HcpState, pos: Cell) -> Segment:
+        assert self.current is not None
+        dest = self.current.destination
+        return Segment("carry", state.value, manhattan(pos, dest), target=dest, object=self.current.id)
+
+    def next_event(self, t: int) -> int | None:
+        return None   # its knowledge changes only with messages
+
+    def skip(self, t: int, position: Cell, segment: Segment, steps: int) -> None:
         self.t, self.position = t, position
-        self.search.index += sweep_steps
+        if segment.kind == "sweep":
+            self.search.index = segment.index + moves_between(t - steps, t, segment.period)
+
+    def news(self, obj: ObjectInfo) -> bool:
+        return obj.id not in self.claimed and any(a.contains(obj.location) for a in self.areas)
+
+    def group(self) -> int | None:
+        return self.current.id if self.current is not None and self.state in _GROUP else None
+
+    def departures(self) -> Mapping[int, int]:
+        return {}   # when a group will be complete is known only when it is
 
     # ------------------------------------------------------------------ introspection
+
+    def summary(self) -> AgentSummary:
+        return AgentSummary("help", None, 0, (), dict(self.comm.found_at), tuple(self.comm.warnings),
+                            repr(self.comm.groups))
+
+    @property
+    def phase(self) -> str:
+        return self.state.value
 
     @property
     def done(self) -> bool:
@@ -530,3 +434,6 @@ class HcpAgent:
     @property
     def warnings(self) -> list[str]:
         return self.comm.warnings
+
+
+_GROUP = frozenset((HcpState.HELPING, HcpState.WAITING, HcpState.MOVING))

@@ -1,46 +1,40 @@
-"""NCP: the negotiation-based cooperation protocol — object allocation by the target-points
-negotiation of Rossi et al. (§4.2) inside the Object-Sorting Task.
+"""Slot negotiation: the target-points protocol (§4.2) with targets that need several robots.
 
-At a coordination point (the same triggers as CCP) the found, unscheduled objects are not
-scheduled by Algorithm Coordination but *negotiated*: an object that needs n_i agents is n_i
-carrying slots at one place, and every agent claims slots.
+Each target (an OST object) is n_i *slots* at one place, and every robot claims slots. The moves of
+a round are simultaneous (every active negotiator sends one offer per round, all read together),
+which is what a lockstep team can do; the rules keep every target staffed:
 
-- Round 0: every agent opens by claiming a slot of every object (its biggest possible share).
-- Each round every active agent sends one :class:`NegotiationOffer` (its claim) to everyone;
-  all moves of a round are simultaneous and are read one step later, so a round is one step.
-- Claim size (Eq. 1, the §4 target rule): the claim may hold at most ⌊δ^r · B⌋ objects in round
-  r (B objects negotiated); an agent over its cap drops *contested* objects (claimed by more than
-  n_i agents), the farthest first by its private reward — how far the object is from where its
-  current commitments leave it, plus the carry (the paper's "drop the farthest point").
-- Simultaneous drops must not strand an object: of an object's claimers, the n_i that could
-  reach it first (public cost C_ij = CA_j + dist, as in CCP; ties: lower agent index) are
-  *protected* and never drop it this round. So every object keeps ≥ n_i claimers.
-- Exit option (§3.3): an agent whose claim is contested nowhere leaves with it (kind ``exit``).
-  When every agent has left, each object has exactly n_i claimers: the agreed groups.
-- Time-out: an active agent that sends nothing for ``timeout_rounds`` rounds is dropped from the
-  negotiation and the others start it again without it (if they can still staff every object).
-- The groups are then ordered by :func:`~ost_ros.coordination.order_groups` (one global order,
-  CA/loc updated as in CCP) and executed exactly like a CCP schedule.
+- Round 0: every agent claims a slot of every target (its biggest possible share).
+- Claim size (Eq. 1, :func:`~ost_ros.negotiation.protocol.claim_size`): the claim may hold at
+  most ⌊δ^r · B⌋ targets in round r (B targets negotiated); an agent over its cap drops
+  *contested* targets (claimed by more than n_i agents), the farthest first by its private reward
+  — how much later than the target's n_i-th fastest claimer it would arrive (the paper's "drop
+  the farthest point").
+- Simultaneous drops must not strand a target: of a target's claimers, the n_i ranked first by
+  (claim size, public cost C_ij, index) are *protected* and never drop it this round.
+- Exit option (§3.3): an agent whose claim is contested nowhere leaves with it (kind ``exit``);
+  when every agent has left, each target has exactly n_i claimers: the agreed groups.
+- Time-out: an active agent that sends nothing valid for ``timeout_rounds`` rounds is dropped and
+  the others start again without it (if they can still staff every target).
 
-Every decision uses only public state (the offers received) plus the deciding agent's own
-reward, so every agent's copy of the negotiation state is the same, offer for offer; an offer
-that breaks the rules (a claim that grows, drops a protected object, leaves while contested)
-is logged and treated as no answer.
+Every decision uses only public state (the offers received) plus the deciding agent's own reward,
+so every agent's copy of :class:`SlotNegotiation` is the same, offer for offer; a move that breaks
+the rules (a claim that grows, drops a protected target, leaves while contested) is logged and
+treated as no answer. NCP (:mod:`ost_ros.protocols.ncp`) runs it over the OST's messages;
+:func:`negotiate_slots` runs it standalone (``ost negotiate run --task slots``).
 """
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ost_msgs_py.messages import NegotiationOffer, ObjectFound, SearchDone, Selection
-from ost_ros.agent import CcpAgent
-from ost_ros.comm import CcpComm, CommState
-from ost_ros.coordination import CoordinationPolicy, order_groups
-from ost_ros.model import arrival_np
-from ost_ros.negotiation.protocol import claim_size, validate_delta
-from ost_ros.team import TeamInfo
+from ost_msgs_py.messages import NegotiationOffer, ObjectInfo
+
+from .errors import NegotiationError
+from .protocol import claim_size, validate_delta
 
 _FAR = np.int64(1) << 60
 
@@ -56,9 +50,9 @@ class NegotiationSettings:
     def __post_init__(self) -> None:
         validate_delta(self.delta, "NCP discount factor")
         if self.timeout_rounds < 1:
-            raise ValueError(f"NCP time-out must be at least 1 round, got {self.timeout_rounds}")
+            raise NegotiationError(f"NCP time-out must be at least 1 round, got {self.timeout_rounds}")
         if self.max_rounds < 1:
-            raise ValueError(f"NCP max rounds must be at least 1, got {self.max_rounds}")
+            raise NegotiationError(f"NCP max rounds must be at least 1, got {self.max_rounds}")
 
 
 def claim_cap(delta: float, r: int, size: int) -> int:
@@ -248,121 +242,30 @@ class SlotNegotiation:
                 for c, oid in enumerate(self.objects)}
 
 
-@dataclass
-class NcpComm(CcpComm):
-    """Comm module of an NCP agent: CCP's shared knowledge, negotiation instead of Coordination."""
-
-    settings: NegotiationSettings = field(default_factory=NegotiationSettings)
-    mute_from: int | None = None        # fault injection: send no negotiation moves from this step
-    # The agents whose moves this module sends: itself. The event engine runs one module that
-    # speaks for everyone (every module holds the same public state, so the moves are the same).
-    voices: tuple[int, ...] | None = None
-    negotiation: SlotNegotiation | None = None
-    negotiations: int = 0
-    moves_sent: int = 0
-
-    def receive(self, t: int, messages: list) -> None:
-        moves: dict[int, NegotiationOffer] = {}
-        for msg in messages:
-            if isinstance(msg, ObjectFound):
-                self.note_found(msg.object, msg.t)
-            elif isinstance(msg, SearchDone):
-                if msg.sender in self.team.agent_ids:
-                    self.searched.add(msg.sender)
-            elif isinstance(msg, NegotiationOffer):
-                self._take_move(msg, moves)
-            elif isinstance(msg, Selection):
-                self.warnings.append(f"agent {msg.sender}: a CCP selection in an NCP run; ignored")
-        if self.state is CommState.CLOSED:
-            return
-        if self.negotiation is not None:
-            self._negotiate(t, moves)
-        if self.negotiation is None:
-            all_searched = len(self.searched) == self.team.size
-            if self.unscheduled and (all_searched or self.policy.due(
-                    t, len(self.unscheduled), self.team.searched_fraction(t - 1),
-                    self.team.searched_fraction(t))):
-                self._open(t)
-            elif all_searched and not self.unscheduled:
-                self.state = CommState.CLOSED
-                self.predicted_makespan = self._predict_makespan(t)
-
-    def _take_move(self, msg: NegotiationOffer, moves: dict[int, NegotiationOffer]) -> None:
-        neg = self.negotiation
-        if msg.sender not in self.team.agent_ids:
-            self.warnings.append(f"negotiation move from agent {msg.sender}, not in the team; ignored")
-            return
-        if neg is None or msg.negotiation != neg.number or msg.round != neg.round:
-            self.warnings.append(f"agent {msg.sender}: move for negotiation {msg.negotiation} "
-                                 f"round {msg.round} out of turn; ignored")
-            return
-        k = self.team.index(msg.sender)
-        if k in moves and moves[k] != msg:
-            self.warnings.append(f"agent {msg.sender}: two different moves in one round; kept the first")
-            return
-        moves[k] = msg
-
-    def _open(self, t: int) -> None:
-        """A coordination point: negotiate every found, unscheduled object."""
-        self.state = CommState.NEGOTIATING
-        cost, loc = self.costs(t)
-        batch = [self.objects[i] for i in sorted(self.unscheduled)]
-        self.unscheduled.clear()
-        where = np.array([o.location for o in batch], dtype=np.int64).reshape(-1, 2)
-        reach = arrival_np(cost[None, :], np.abs(where[:, None, :] - loc[None, :, :]).sum(axis=2),
-                           self.team.period_array()[None, :])
-        self.negotiations += 1
-        self.negotiation = SlotNegotiation.open(self.negotiations, batch, reach)
-        self._send_move(t)
-
-    def _negotiate(self, t: int, moves: dict[int, NegotiationOffer]) -> None:
-        neg = self.negotiation
-        neg.apply(moves, self.team.agent_ids, self.settings)
-        self.warnings.extend(neg.notes)
-        neg.notes.clear()
-        if not neg.done:
-            self._send_move(t)
-            return
-        # Agreed: every agent orders the same groups the same way (a CCP schedule).
-        cost, loc = self.costs(t)
-        batch = [self.objects[i] for i in neg.objects]
-        result = order_groups(self.team.agent_ids, cost, loc, batch, neg.groups(self.team.agent_ids),
-                              self.team.speed_periods)
-        for a in result.schedule:
-            members = [self.team.index(j) for j in a.agents]
-            self.free_at[members] = a.finish
-            self.free_loc[members] = self.objects[a.object].destination
-        self.schedule.extend(result.schedule)
-        self.coordinations += 1
-        self.negotiation = None
-        self.state = CommState.LISTENING
-
-    def _send_move(self, t: int) -> None:
-        neg = self.negotiation
-        if self.mute_from is not None and t >= self.mute_from:
-            return
-        for agent in self.voices or (self.me,):
-            k = self.team.index(agent)
-            if not neg.active[k]:
+def negotiate_slots(objects: Sequence[ObjectInfo], reach: np.ndarray, agent_ids: Sequence[int],
+                    settings: NegotiationSettings | None = None,
+                    silent: Mapping[int, int] | None = None) -> tuple[SlotNegotiation, int]:
+    """Run one slot negotiation to its end, every agent moving by the rules each round; returns
+    the final state (``groups``) and the number of moves sent. ``reach`` (B, N): the public cost
+    C_ij of agent j reaching target i. ``silent``: agent id -> the round from which it sends
+    nothing (fault injection). The same code NCP's comm modules run, one round per step."""
+    settings = settings or NegotiationSettings()
+    ids = tuple(agent_ids)
+    if reach.shape != (len(objects), len(ids)):
+        raise NegotiationError(f"reach must be {len(objects)} targets x {len(ids)} agents, "
+                               f"got {reach.shape}")
+    if objects and max(o.required for o in objects) > len(ids):
+        raise NegotiationError("a target needs more robots than negotiate")
+    neg = SlotNegotiation.open(1, list(objects), reach)
+    sent = 0
+    while not neg.done:
+        moves = {}
+        for k in np.flatnonzero(neg.active):
+            if silent and neg.round >= silent.get(ids[k], neg.round + 1):
                 continue
-            kind, row = neg.move(k, self.settings)
-            ids = tuple(neg.objects[c] for c in np.flatnonzero(row))
-            self._outbox.append(NegotiationOffer(agent, t, neg.number, neg.round, kind, ids))
-            self.moves_sent += 1
-
-    @property
-    def busy(self) -> bool:
-        """A negotiation is under way: every step until it ends carries moves."""
-        return self.negotiation is not None
-
-
-class NcpAgent(CcpAgent):
-    """A robot running NCP: CCP's agent (search, motion) with the negotiating comm module."""
-
-    protocol = "ncp"
-
-    def __init__(self, agent_id: int, team: TeamInfo, policy: CoordinationPolicy | None = None,
-                 settings: NegotiationSettings | None = None, mute_from: int | None = None):
-        super().__init__(agent_id, team, policy)
-        self.comm = NcpComm(agent_id, team, policy or CoordinationPolicy(),
-                            settings=settings or NegotiationSettings(), mute_from=mute_from)
+            kind, row = neg.move(int(k), settings)
+            moves[int(k)] = NegotiationOffer(ids[k], neg.round, neg.number, neg.round, kind,
+                                             tuple(neg.objects[c] for c in np.flatnonzero(row)))
+        sent += len(moves)
+        neg.apply(moves, ids, settings)
+    return neg, sent

@@ -1,0 +1,33 @@
+"""CCP, the cost-balanced cooperation protocol (Lin & Hsu, §3–4): every agent runs Algorithm
+Coordination on the same shared knowledge and so holds the same global schedule."""
+from __future__ import annotations
+
+from typing import Any
+
+from ost_msgs_py.messages import ObjectFound, ScheduleUpdate, SearchDone, Selection, Status
+from ost_ros.coordination import ORGANISATIONS, CoordinationPolicy
+from ost_ros.protocols.base import Capabilities, ProtocolSpec
+from ost_ros.protocols.ccp.comm import CcpComm
+from ost_ros.protocols.shared.agent import STATES, ScheduleAgent
+from ost_ros.team import TeamInfo
+
+
+def make_agent(agent_id: int, team: TeamInfo, policy: CoordinationPolicy, settings: Any = None) -> ScheduleAgent:
+    return ScheduleAgent(agent_id, team, CcpComm(agent_id, team, policy), "ccp")
+
+
+def team_comm(team: TeamInfo, policy: CoordinationPolicy, settings: Any = None) -> CcpComm:
+    return CcpComm(team.agent_ids[0], team, policy, voices=team.agent_ids)
+
+
+SPEC = ProtocolSpec(
+    name="ccp",
+    label="cost-balanced",
+    title="cost-balanced: every robot runs Algorithm Coordination on shared knowledge (the paper's)",
+    make_agent=make_agent,
+    messages=(ObjectFound, SearchDone, Selection, Status, ScheduleUpdate),
+    states=STATES,
+    capabilities=Capabilities(recovers_failures=True, organisations=ORGANISATIONS, own_sweeps=True,
+                              heterogeneous=True, triggers=True, team_knowledge=True),
+    team_comm=team_comm,
+)

@@ -1,0 +1,139 @@
+"""Quiet plans: what an agent will do, without a word, while nothing reaches it.
+
+A protocol's agent describes its next steps as a few :class:`Segment` s — sweep, walk, wait, hold
+or carry — each of which repeats one kind of action under the world's rules of motion (one cell
+per movable step, x first; a carry moves the object and its group). One description serves both
+places that skip steps:
+
+- the event engine (:mod:`ost_ros.engines.event`) jumps over the first segment of every agent at
+  once (:func:`advance`), then tells each agent (``skip``);
+- the DDS runtime (:mod:`agent_node.runtime`) sends the whole plan, step by step (:func:`unroll`),
+  to the world, which executes it as long as what it observes is what the plan expects.
+
+A plan is valid from the step it was made for, as long as no message reaches the agent and its
+sensor shows nothing it reacts to (the agent's ``news``); callers check the second condition.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+from ost_msgs_py.messages import ActionKind
+from ost_ros.model import Cell, can_move, moves_between, walk
+from ost_ros.motion import apply, step_toward
+
+KINDS = ("sweep", "walk", "wait", "hold", "carry")
+
+
+@dataclass(frozen=True)
+class Segment:
+    """``steps`` steps (None: until something happens) of one repeated behaviour, each reported
+    with global state ``state``.
+
+    - ``sweep``: follow ``path`` from ``path[index]`` (where the agent stands), one cell per
+      movable step (steps t with t % ``period`` == 0; it waits in the others), sensing all the way;
+    - ``walk``: toward ``target``, one cell per movable step, waiting in the others;
+    - ``wait``: stand still;
+    - ``hold``: carry ``object`` toward ``target`` (its destination) without it moving: the
+      group is not complete yet;
+    - ``carry``: carry ``object`` toward ``target``; the group moves in every step movable for
+      ``period`` (the group's: the lcm of its members').
+    """
+
+    kind: str
+    state: str
+    steps: int | None = None
+    period: int = 1
+    target: Cell | None = None
+    path: Sequence[Cell] = ()
+    index: int = 0
+    object: int = -1
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"segment kind {self.kind!r} is not one of {', '.join(KINDS)}")
+        if self.steps is not None and self.steps < 1:
+            raise ValueError(f"a {self.kind} segment lasts at least one step, not {self.steps}")
+
+    @property
+    def reads_sensor(self) -> bool:
+        """Whether the agent looks at its sensor in these steps (it only does while sweeping)."""
+        return self.kind == "sweep"
+
+
+Plan = tuple[Segment, ...]
+
+
+@dataclass(frozen=True)
+class PlannedStep:
+    """One step of a plan: where the agent stands, whether it reads its sensor, and its action."""
+
+    t: int
+    position: Cell
+    reads_sensor: bool
+    kind: ActionKind
+    direction: Cell
+    object: int
+    state: str
+
+
+def _act(seg: Segment, s: int, pos: Cell, m: int) -> tuple[ActionKind, Cell, int, bool]:
+    """The action of segment ``seg`` in step s from ``pos`` (sweep: on path[m]); and whether the
+    agent's cell changes after it."""
+    if seg.kind == "sweep":
+        if m < len(seg.path) - 1 and can_move(s, seg.period):
+            return ActionKind.MOVE, step_toward(pos, seg.path[m + 1]), -1, True
+        return ActionKind.WAIT, (0, 0), -1, False
+    if seg.kind == "walk":
+        assert seg.target is not None
+        if pos != seg.target and can_move(s, seg.period):
+            return ActionKind.MOVE, step_toward(pos, seg.target), -1, True
+        return ActionKind.WAIT, (0, 0), -1, False
+    if seg.kind == "wait":
+        return ActionKind.WAIT, (0, 0), -1, False
+    assert seg.target is not None
+    moves = seg.kind == "carry" and pos != seg.target and can_move(s, seg.period)
+    return ActionKind.CARRY, step_toward(pos, seg.target), seg.object, moves
+
+
+def unroll(plan: Plan, t: int, position: Cell, limit: int) -> list[PlannedStep]:
+    """The plan step by step from step ``t`` at ``position``: at most ``limit`` steps (an
+    open-ended segment is cut there)."""
+    out: list[PlannedStep] = []
+    pos, s = position, t
+    for seg in plan:
+        n = limit - len(out) if seg.steps is None else min(seg.steps, limit - len(out))
+        m = seg.index
+        for _ in range(n):
+            kind, direction, obj, moves = _act(seg, s, pos, m)
+            out.append(PlannedStep(s, pos, seg.reads_sensor, kind, direction, obj, seg.state))
+            if moves:
+                pos = apply(pos, direction)
+                m += 1
+            s += 1
+        if len(out) >= limit:
+            break
+    return out
+
+
+def advance(seg: Segment, t: int, position: Cell, steps: int) -> tuple[Cell, int]:
+    """Where ``steps`` steps of ``seg`` from step ``t`` at ``position`` end, and how many moves
+    they make (for a hold: none; for a carry: the object's moves too)."""
+    if seg.kind in ("wait", "hold"):
+        return position, 0
+    moves = moves_between(t, t + steps, seg.period)
+    if seg.kind == "sweep":
+        moves = min(moves, len(seg.path) - 1 - seg.index)
+        return seg.path[seg.index + moves], moves
+    assert seg.target is not None
+    end = walk(position, seg.target, moves)
+    return end, abs(end[0] - position[0]) + abs(end[1] - position[1])
+
+
+def rest(seg: Segment, t: int, steps: int) -> Segment:
+    """What is left of ``seg`` (started in step ``t``) after ``steps`` of its steps."""
+    left = None if seg.steps is None else seg.steps - steps
+    if seg.kind == "sweep":
+        moves = min(moves_between(t, t + steps, seg.period), len(seg.path) - 1 - seg.index)
+        return replace(seg, steps=left, index=seg.index + moves)
+    return replace(seg, steps=left)

@@ -1,0 +1,48 @@
+"""What a sweeping agent senses, computed for a whole path at once (the event engines and the
+makespan bound use it; the world senses step by step).
+
+The sensor covers the 3×3 block around the agent; an agent on its sweep stands on ``path[i]``
+once it has made i moves.
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from ost_ros.model import Scenario, Subarea
+from ost_ros.search import agent_plan, route
+
+
+def sweep_paths(scenario: Scenario) -> list[np.ndarray]:
+    """Each agent's cell-by-cell search path ((L_j + 1) × 2): it stands on row t at time t."""
+    return list(_paths(scenario.subareas, tuple(a.base for a in scenario.agents),
+                       tuple(a.sweep for a in scenario.agents)))
+
+
+@lru_cache(maxsize=8)
+def _paths(areas: tuple[Subarea, ...], bases: tuple, sweeps: tuple) -> tuple[np.ndarray, ...]:
+    # A study runs many object sets on one team: the sweeps are computed once per team.
+    out = []
+    for area, base, sweep in zip(areas, bases, sweeps):
+        path = np.array(route(agent_plan(area, base, sweep)), dtype=np.int64).reshape(-1, 2)
+        path.flags.writeable = False
+        out.append(path)
+    return tuple(out)
+
+
+def first_sensing(path: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """For each cell, the first index of ``path`` whose 3×3 block covers it (-1: never)."""
+    if len(cells) == 0:
+        return np.zeros(0, dtype=np.int64)
+    out = np.full(len(cells), -1, dtype=np.int64)
+    lo, hi = path.min(axis=0) - 1, path.max(axis=0) + 1
+    near = np.all((cells >= lo) & (cells <= hi), axis=1)
+    for k in np.flatnonzero(near):
+        cover = np.max(np.abs(path - cells[k]), axis=1) <= 1
+        hit = int(np.argmax(cover))
+        if cover[hit]:
+            out[k] = hit
+    return out
+
+
