@@ -17,6 +17,7 @@ moves messages.
 """
 from __future__ import annotations
 
+import functools
 import os
 import signal
 import sys
@@ -133,7 +134,7 @@ class AgentRunner:
         self.channel_pubs = {c: node.create_publisher(String, tp.channel_topic(c), q)
                              for c in runtime.channels}
         self.channel_subs = [node.create_subscription(String, tp.channel_topic(c),
-                                                      lambda m, c=c: self.on_channel(m, c), q)
+                                                      functools.partial(self.on_channel, channel=c), q)
                              for c in runtime.channels]
         self.sub_result = node.create_subscription(String, tp.RESULT, self.on_result, tp.RESULT_QOS)
         # Published to once (at ready); after that DDS asserts its liveliness by itself and the

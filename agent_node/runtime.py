@@ -18,11 +18,20 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 from ost_msgs_py.messages import Action, AgentLost, AgentMessage, ObjectInfo, Observation
-from ost_msgs_py.runtime import (Acted, AgentReport, PlanStep, ProtocolViolation, Resend, RunEnd,
-                                 ScheduleEntry, StepMessages, Tick)
+from ost_msgs_py.runtime import (
+    Acted,
+    AgentReport,
+    PlanStep,
+    ProtocolViolation,
+    Resend,
+    RunEnd,
+    ScheduleEntry,
+    StepMessages,
+    Tick,
+)
 from ost_ros import protocols
 from ost_ros.model import Cell
 from ost_ros.protocols.base import ProtocolAgent
@@ -167,7 +176,7 @@ class AgentRuntime:
     def _has(self, peer: int) -> bool:
         """Every part of ``peer``'s batch of step ``self.last`` is in."""
         parts = self._batches.get(self.last, {}).get(peer)
-        return bool(parts) and len(parts) == next(iter(parts.values())).parts
+        return parts is not None and len(parts) > 0 and len(parts) == next(iter(parts.values())).parts
 
     def _ready(self, peers: tuple[int, ...]) -> bool:
         return all(p == self.me or self._has(p) for p in peers)
@@ -189,7 +198,7 @@ class AgentRuntime:
                     parts = have[sender]
                     for channel in (*self.channels, STEP):
                         if channel in parts:
-                            inbox.extend(parts[channel].messages)
+                            inbox.extend(cast(Sequence[AgentMessage], parts[channel].messages))
             inbox.extend(m for m in failed if m.t == self.last)
             self._learn(inbox)
             self.agent.communicate(self.last, inbox)
@@ -231,7 +240,7 @@ class AgentRuntime:
                 # A peer is at most one lockstep step behind: keep the last few batches only.
                 while len(self._batches_sent) > 3:
                     del self._batches_sent[min(self._batches_sent)]
-            step_out.append(Acted(action, len(messages), self._plan, self.run))
+            step_out.append(Acted(action, len(messages), self._plan, self.run or ""))
             self._last_tick, self._last_out = tick, step_out
             out.extend(step_out)
         if self._end is not None and self._tick is None and self._ready(self._end.peers):
@@ -302,7 +311,7 @@ def split_batch(sender: int, t: int, messages: Sequence[AgentMessage], run: str 
     for m in messages:
         split.setdefault(own.get(type(m), STEP), []).append(m)
     parts = [(c, tuple(ms)) for c, ms in split.items() if ms]
-    return [StepMessages(sender, t, ms, c, len(parts), run) for c, ms in parts]
+    return [StepMessages(sender, t, cast(tuple[Any, ...], ms), c, len(parts), run) for c, ms in parts]
 
 
 def _same_action(action: Action, step: PlanStep | PlannedStep) -> bool:

@@ -60,7 +60,7 @@ def _hints(cls: type) -> dict[str, Any]:
 
 def _version_of(cls: type) -> int | None:
     for f in dataclasses.fields(cls):
-        if f.name == "version":
+        if f.name == "version" and isinstance(f.default, int):
             return f.default
     return None
 
@@ -104,6 +104,15 @@ def _describe(value: Any) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
+# Scalar field types: (accepts the JSON value, what was expected, the Python value).
+_SCALARS: dict[type, tuple[Any, str, Any]] = {
+    bool: (lambda v: isinstance(v, bool), "true/false", lambda v: v),
+    int: (lambda v: isinstance(v, int) and not isinstance(v, bool), "an integer", lambda v: v),
+    float: (lambda v: isinstance(v, (int, float)) and not isinstance(v, bool), "a number", float),
+    str: (lambda v: isinstance(v, str), "a string", lambda v: v),
+}
+
+
 def _from_json(value: Any, hint: Any, where: str) -> Any:
     if hint is AnyMessage:
         return _message(value, None, where)
@@ -111,44 +120,14 @@ def _from_json(value: Any, hint: Any, where: str) -> Any:
         return value
     origin = typing.get_origin(hint)
     if origin in (typing.Union, types.UnionType):
-        options = typing.get_args(hint)
-        if value is None and type(None) in options:
-            return None
-        errors = []
-        for opt in options:
-            if opt is type(None):
-                continue
-            try:
-                return _from_json(value, opt, where)
-            except MessageError as exc:
-                errors.append(str(exc))
-        raise MessageError(errors[0] if len(errors) == 1 else f"{where}: {_describe(value)} fits none of "
-                           f"{', '.join(getattr(o, '__name__', str(o)) for o in options)}")
+        return _union(value, typing.get_args(hint), where)
     if origin is tuple:
-        args = typing.get_args(hint)
-        if not isinstance(value, list):
-            raise MessageError(f"{where}: expected a list, got {_describe(value)}")
-        if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_from_json(v, args[0], f"{where}[{k}]") for k, v in enumerate(value))
-        if len(value) != len(args):
-            raise MessageError(f"{where}: expected {len(args)} items, got {len(value)}")
-        return tuple(_from_json(v, a, f"{where}[{k}]") for k, (v, a) in enumerate(zip(value, args)))
-    if hint is bool:
-        if not isinstance(value, bool):
-            raise MessageError(f"{where}: expected true/false, got {_describe(value)}")
-        return value
-    if hint is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise MessageError(f"{where}: expected an integer, got {_describe(value)}")
-        return value
-    if hint is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise MessageError(f"{where}: expected a number, got {_describe(value)}")
-        return float(value)
-    if hint is str:
-        if not isinstance(value, str):
-            raise MessageError(f"{where}: expected a string, got {_describe(value)}")
-        return value
+        return _tuple(value, typing.get_args(hint), where)
+    if hint in _SCALARS:
+        accepts, expected, convert = _SCALARS[hint]
+        if not accepts(value):
+            raise MessageError(f"{where}: expected {expected}, got {_describe(value)}")
+        return convert(value)
     if isinstance(hint, type) and issubclass(hint, enum.Enum):
         try:
             return hint(value)
@@ -160,6 +139,31 @@ def _from_json(value: Any, hint: Any, where: str) -> Any:
             return _message(value, (hint,), where)
         return _fields(value, hint, where)
     raise MessageError(f"{where}: unsupported field type {hint!r}")
+
+
+def _union(value: Any, options: tuple[Any, ...], where: str) -> Any:
+    if value is None and type(None) in options:
+        return None
+    errors = []
+    for opt in options:
+        if opt is type(None):
+            continue
+        try:
+            return _from_json(value, opt, where)
+        except MessageError as exc:
+            errors.append(str(exc))
+    raise MessageError(errors[0] if len(errors) == 1 else f"{where}: {_describe(value)} fits none of "
+                       f"{', '.join(getattr(o, '__name__', str(o)) for o in options)}")
+
+
+def _tuple(value: Any, args: tuple[Any, ...], where: str) -> tuple[Any, ...]:
+    if not isinstance(value, list):
+        raise MessageError(f"{where}: expected a list, got {_describe(value)}")
+    if len(args) == 2 and args[1] is Ellipsis:
+        return tuple(_from_json(v, args[0], f"{where}[{k}]") for k, v in enumerate(value))
+    if len(value) != len(args):
+        raise MessageError(f"{where}: expected {len(args)} items, got {len(value)}")
+    return tuple(_from_json(v, a, f"{where}[{k}]") for k, (v, a) in enumerate(zip(value, args)))
 
 
 def _fields(value: Any, cls: type, where: str, skip: tuple[str, ...] = ()) -> Any:
@@ -183,7 +187,7 @@ def _fields(value: Any, cls: type, where: str, skip: tuple[str, ...] = ()) -> An
         raise MessageError(f"{where}: {exc}") from None
 
 
-def _message(data: Any, expected: tuple[type, ...] | None, where: str) -> Any:
+def _message(data: Any, expected: tuple[type[Any], ...] | None, where: str) -> Any:
     if not isinstance(data, dict):
         raise MessageError(f"{where}: expected a JSON object, got {_describe(data)}")
     tag = data.get("type")
@@ -193,7 +197,7 @@ def _message(data: Any, expected: tuple[type, ...] | None, where: str) -> Any:
     if expected is not None and cls not in expected:
         names = ", ".join(c.TYPE for c in expected)
         raise MessageError(f"{where}.type: {tag!r} not accepted here (expected {names})")
-    where = tag if where == "message" else where
+    where = str(tag) if where == "message" else where
     want = _version_of(cls)
     if want is not None:
         if "version" not in data:
@@ -204,7 +208,7 @@ def _message(data: Any, expected: tuple[type, ...] | None, where: str) -> Any:
     return _fields(data, cls, where, skip=("type",))
 
 
-def decode(text: str | bytes, expected: type | tuple[type, ...] | None = None) -> Any:
+def decode(text: str | bytes, expected: type[Any] | tuple[type[Any], ...] | None = None) -> Any:
     """Parse and validate one message; ``expected`` restricts the accepted classes."""
     if isinstance(text, str):
         size = len(text.encode("utf-8", "surrogatepass"))

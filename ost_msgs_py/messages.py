@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import Enum
-from typing import ClassVar
+from typing import Any, ClassVar
 
 Cell = tuple[int, int]
 
@@ -254,11 +254,11 @@ class Action:
     version: int = SCHEMA_VERSION
 
 
-AGENT_MESSAGES: tuple[type, ...] = (ObjectFound, SearchDone, Selection, HelpRequest, HelpOffer,
+AGENT_MESSAGES: tuple[type[Any], ...] = (ObjectFound, SearchDone, Selection, HelpRequest, HelpOffer,
                                     HelpAccept, HelpRelease, NegotiationOffer, Status, AgentLost,
                                     ScheduleUpdate)
-WORLD_MESSAGES: tuple[type, ...] = (Observation, Action)
-ALL_MESSAGES: dict[str, type] = {cls.TYPE: cls for cls in AGENT_MESSAGES + WORLD_MESSAGES}
+WORLD_MESSAGES: tuple[type[Any], ...] = (Observation, Action)
+ALL_MESSAGES: dict[str, type[Any]] = {cls.TYPE: cls for cls in AGENT_MESSAGES + WORLD_MESSAGES}
 
 # Any message an agent's comm module takes in (the world's AgentLost notice included).
 AgentMessage = (ObjectFound | SearchDone | Selection | HelpRequest | HelpOffer | HelpAccept | HelpRelease

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ost_ros.sensing import first_sensing, sweep_paths
 from ost_ros.model import Scenario
+from ost_ros.sensing import first_sensing, sweep_paths
 
 
 @dataclass(frozen=True)

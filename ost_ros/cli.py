@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 from ost_ros.commands.args import OneLineParser
 from ost_ros.errors import UsageError

@@ -13,11 +13,12 @@ same schedule, which is what lets CCP agree without further communication.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ost_ros.model import ObjectSpec, arrival, arrival_np, group_period
 
@@ -57,7 +58,7 @@ def _reach(cost: np.ndarray, loc: np.ndarray, where: np.ndarray,
     return arrival_np(cost[None, :], dist, period[None, :])
 
 
-def _carry_times(m_p: int, carry: int, periods) -> tuple[int, int]:
+def _carry_times(m_p: int, carry: int, periods: Sequence[int] | np.ndarray) -> tuple[int, int]:
     """(start, finish) of a carry whose group is complete at m_p: the group moves in the steps
     all its members can move in (unit speed: m_p, m_p + carry)."""
     k = group_period(periods)
@@ -65,7 +66,7 @@ def _carry_times(m_p: int, carry: int, periods) -> tuple[int, int]:
     return start, arrival(m_p, carry, k)
 
 
-def coordinate(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Sequence[int]],
+def coordinate(agent_ids: Sequence[int], cost: ArrayLike, loc: ArrayLike,
                objects: Sequence[ObjectSpec], periods: Sequence[int] | None = None) -> CoordinationResult:
     """Schedule ``objects`` on the agents whose free time is ``cost`` and position ``loc``.
 
@@ -76,16 +77,16 @@ def coordinate(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Sequ
     ids = np.asarray(agent_ids, dtype=np.int64)
     if ids.size and np.any(np.diff(ids) <= 0):
         raise ValueError("agent ids must be strictly ascending")
-    cost = np.array(cost, dtype=np.int64).reshape(-1)
-    loc = np.array(loc, dtype=np.int64).reshape(-1, 2)
+    ca = np.array(cost, dtype=np.int64).reshape(-1)   # CA_j, updated as objects are scheduled
+    at = np.array(loc, dtype=np.int64).reshape(-1, 2)  # loc_j, likewise
     n = ids.size
-    if cost.size != n or loc.shape[0] != n:
+    if ca.size != n or at.shape[0] != n:
         raise ValueError("agent_ids, cost and loc must have one entry per agent")
     objs = sorted(objects, key=lambda o: o.id)
     m = len(objs)
     selections = np.full((m, n), -1, dtype=np.int64)
     if m == 0:
-        return CoordinationResult([], cost, loc, selections)
+        return CoordinationResult([], ca, at, selections)
     need = np.array([o.required for o in objs], dtype=np.int64)
     if need.max() > n or need.min() < 1:
         bad = next(o for o in objs if not 1 <= o.required <= n)
@@ -98,7 +99,7 @@ def coordinate(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Sequ
     per = None if periods is None else np.asarray(periods, dtype=np.int64).reshape(-1)
     if per is not None and (per.size != n or np.any(per < 1)):
         raise ValueError("periods must give every agent a period >= 1")
-    reach = _reach(cost, loc, where, per)   # (M, N); rows of scheduled objects are set to _FAR
+    reach = _reach(ca, at, where, per)   # (M, N); rows of scheduled objects are set to _FAR
     alive = np.ones(m, dtype=bool)
     schedule: list[Assignment] = []
     for r in range(m):
@@ -114,18 +115,18 @@ def coordinate(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Sequ
         # Step 3: the n_p cheapest agents (stable sort: ties to the lower agent id).
         group = np.sort(np.argsort(reach[p], kind="stable")[: need[p]])
         start, finish = _carry_times(m_p, int(carry[p]), () if per is None else per[group])
-        cost[group] = finish
-        loc[group] = dest[p]
+        ca[group] = finish
+        at[group] = dest[p]
         schedule.append(Assignment(int(obj_ids[p]), tuple(int(a) for a in ids[group]), start, finish))
         alive[p] = False
         # Only the group's columns changed; scheduled rows stay out of every argmin.
-        reach[:, group] = np.where(alive[:, None], _reach(cost[group], loc[group], where,
+        reach[:, group] = np.where(alive[:, None], _reach(ca[group], at[group], where,
                                                           None if per is None else per[group]), _FAR)
         reach[p] = _FAR
-    return CoordinationResult(schedule, cost, loc, selections)
+    return CoordinationResult(schedule, ca, at, selections)
 
 
-def order_groups(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Sequence[int]],
+def order_groups(agent_ids: Sequence[int], cost: ArrayLike, loc: ArrayLike,
                  objects: Sequence[ObjectSpec], groups: dict[int, tuple[int, ...]],
                  periods: Sequence[int] | None = None) -> CoordinationResult:
     """Schedule objects whose groups are already agreed (NCP): Algorithm Coordination's steps 2
@@ -137,13 +138,13 @@ def order_groups(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Se
     so execution cannot deadlock and starts exactly when planned.
     """
     ids = np.asarray(agent_ids, dtype=np.int64)
-    cost = np.array(cost, dtype=np.int64).reshape(-1)
-    loc = np.array(loc, dtype=np.int64).reshape(-1, 2)
+    ca = np.array(cost, dtype=np.int64).reshape(-1)   # CA_j, updated as objects are scheduled
+    at = np.array(loc, dtype=np.int64).reshape(-1, 2)  # loc_j, likewise
     index = {int(a): k for k, a in enumerate(ids)}
     objs = sorted(objects, key=lambda o: o.id)
     m = len(objs)
     if m == 0:
-        return CoordinationResult([], cost, loc, np.zeros((0, ids.size), dtype=np.int64))
+        return CoordinationResult([], ca, at, np.zeros((0, ids.size), dtype=np.int64))
     member = np.zeros((m, ids.size), dtype=bool)
     for r, o in enumerate(objs):
         g = groups.get(o.id, ())
@@ -155,7 +156,7 @@ def order_groups(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Se
     dest = np.array([o.destination for o in objs], dtype=np.int64)
     carry = np.abs(where - dest).sum(axis=1)
     per = None if periods is None else np.asarray(periods, dtype=np.int64).reshape(-1)
-    reach = _reach(cost, loc, where, per)
+    reach = _reach(ca, at, where, per)
     alive = np.ones(m, dtype=bool)
     schedule: list[Assignment] = []
     for _ in range(m):
@@ -165,12 +166,12 @@ def order_groups(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Se
         m_p = int(m_i[p])
         group = np.flatnonzero(member[p])
         start, finish = _carry_times(m_p, int(carry[p]), () if per is None else per[group])
-        cost[group] = finish
-        loc[group] = dest[p]
+        ca[group] = finish
+        at[group] = dest[p]
         schedule.append(Assignment(int(obj_ids[p]), tuple(int(a) for a in ids[group]), start, finish))
         alive[p] = False
-        reach[:, group] = _reach(cost[group], loc[group], where, None if per is None else per[group])
-    return CoordinationResult(schedule, cost, loc, np.zeros((0, ids.size), dtype=np.int64))
+        reach[:, group] = _reach(ca[group], at[group], where, None if per is None else per[group])
+    return CoordinationResult(schedule, ca, at, np.zeros((0, ids.size), dtype=np.int64))
 
 
 # ----------------------------------------------------------------------------- triggers

@@ -8,9 +8,8 @@ command, which owns the processes; this module stays ROS-free.
 from __future__ import annotations
 
 import random
-from dataclasses import dataclass
-
 from collections.abc import Callable
+from dataclasses import dataclass
 
 from ost_ros import protocols
 from ost_ros.coordination import CoordinationPolicy

@@ -69,7 +69,7 @@ def walk(cur: Cell, target: Cell, moves: int) -> Cell:
     return (x, cur[1] + (my if dy > 0 else -my))
 
 
-def group_period(periods: Sequence[int]) -> int:
+def group_period(periods: Sequence[int] | np.ndarray) -> int:
     """The period of a group carrying together: the lcm of its members' periods."""
     return math.lcm(*(int(p) for p in periods)) if len(periods) else 1
 

@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 from ost_ros.coordination import Assignment, coordinate
 from ost_ros.model import Cell, ObjectSpec, manhattan
@@ -49,7 +49,7 @@ def search_space_order(n_objects: int, n_agents: int) -> float:
 
 
 def makespan_of(plan_cost: Sequence[int], loc: Sequence[Cell], bases: Sequence[Cell]) -> int:
-    return max(c + manhattan(l, b) for c, l, b in zip(plan_cost, loc, bases))
+    return max(c + manhattan(at, b) for c, at, b in zip(plan_cost, loc, bases))
 
 
 def optimal_schedule(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Cell],
@@ -61,69 +61,79 @@ def optimal_schedule(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequenc
         if not 1 <= o.required <= n:
             raise ValueError(f"object {o.id} needs {o.required} agents; the team has {n}")
     ca = [int(c) for c in cost]
-    where: list[Cell] = [tuple(int(v) for v in p) for p in loc]
-    bases = [tuple(int(v) for v in b) for b in bases]
-
+    where: list[Cell] = [(int(p[0]), int(p[1])) for p in loc]
+    homes: list[Cell] = [(int(b[0]), int(b[1])) for b in bases]
     # The CCP schedule on the same problem: the starting incumbent and the comparison.
     ccp = coordinate(agent_ids, ca, where, objs)
-    ccp_cost = makespan_of([int(c) for c in ccp.cost], [tuple(int(v) for v in p) for p in ccp.loc],
-                           bases)
-    best_cost = ccp_cost
-    best_plan = list(ccp.schedule)
+    ccp_cost = makespan_of([int(c) for c in ccp.cost], [(int(p[0]), int(p[1])) for p in ccp.loc], homes)
+    search = _BranchAndBound(list(agent_ids), homes, objs, max_nodes, ccp_cost, list(ccp.schedule))
+    left = list(range(len(objs)))
+    if objs and search.bound(ca, where, left) < search.best_cost:
+        search.dfs(ca, where, left, (-1, frozenset()))
+    return OptimalResult(search.best_cost, search.best_plan, search.proven, search.nodes, ccp_cost)
 
-    carry = [manhattan(o.location, o.destination) for o in objs]
-    home_k = [sorted(manhattan(o.destination, b) for b in bases)[o.required - 1] for o in objs]
-    nodes = 0
-    proven = True
 
-    def bound(ca: list[int], where: list[Cell], left: list[int]) -> int:
-        b = max(c + manhattan(w, h) for c, w, h in zip(ca, where, bases))
+class _BranchAndBound:
+    """Depth-first over (next object, its group), pruned by a makespan lower bound."""
+
+    def __init__(self, agent_ids: list[int], bases: list[Cell], objs: list[ObjectSpec],
+                 max_nodes: int, best_cost: int, best_plan: list[Assignment]):
+        self.ids, self.bases, self.objs, self.max_nodes = agent_ids, bases, objs, max_nodes
+        self.best_cost, self.best_plan = best_cost, best_plan
+        self.carry = [manhattan(o.location, o.destination) for o in objs]
+        self.home_k = [sorted(manhattan(o.destination, b) for b in bases)[o.required - 1] for o in objs]
+        self.nodes = 0
+        self.proven = True
+        self.plan: list[Assignment] = []
+
+    def bound(self, ca: list[int], where: list[Cell], left: list[int]) -> int:
+        b = max(c + manhattan(w, h) for c, w, h in zip(ca, where, self.bases))
         for i in left:
-            o = objs[i]
+            o = self.objs[i]
             reach = sorted(c + manhattan(w, o.location) for c, w in zip(ca, where))
-            b = max(b, reach[o.required - 1] + carry[i] + home_k[i])
+            b = max(b, reach[o.required - 1] + self.carry[i] + self.home_k[i])
         return b
 
-    plan: list[Assignment] = []
-
-    def dfs(ca: list[int], where: list[Cell], left: list[int], prev: tuple[int, frozenset]) -> None:
-        nonlocal best_cost, best_plan, nodes, proven
+    def dfs(self, ca: list[int], where: list[Cell], left: list[int], prev: tuple[int, frozenset]) -> None:
         if not left:
-            c = makespan_of(ca, where, bases)
-            if c < best_cost:
-                best_cost, best_plan = c, list(plan)
+            c = makespan_of(ca, where, self.bases)
+            if c < self.best_cost:
+                self.best_cost, self.best_plan = c, list(self.plan)
             return
-        if nodes >= max_nodes:
-            proven = False
+        if self.nodes >= self.max_nodes:
+            self.proven = False
             return
         for i in left:
-            o = objs[i]
-            reach = [c + manhattan(w, o.location) for c, w in zip(ca, where)]
-            order = sorted(range(n), key=lambda j: (reach[j], j))
-            rest = [x for x in left if x != i]
-            for group in itertools.combinations(order, o.required):
-                # Two consecutive objects with disjoint groups commute (neither sees the other):
-                # explore only the order with the lower object first.
-                if i < prev[0] and prev[1].isdisjoint(group):
-                    continue
-                nodes += 1
-                start = max(reach[j] for j in group)
-                finish = start + carry[i]
-                ca2, where2 = list(ca), list(where)
-                for j in group:
-                    ca2[j], where2[j] = finish, o.destination
-                if bound(ca2, where2, rest) >= best_cost:
-                    continue
-                plan.append(Assignment(o.id, tuple(sorted(agent_ids[j] for j in group)), start, finish))
-                dfs(ca2, where2, rest, (i, frozenset(group)))
-                plan.pop()
-                if nodes >= max_nodes:
-                    proven = False
-                    return
+            if not self._branch(i, ca, where, left, prev):
+                return
 
-    if objs and bound(ca, where, list(range(len(objs)))) < best_cost:
-        dfs(ca, where, list(range(len(objs))), (-1, frozenset()))
-    return OptimalResult(best_cost, best_plan, proven, nodes, ccp_cost)
+    def _branch(self, i: int, ca: list[int], where: list[Cell], left: list[int],
+                prev: tuple[int, frozenset]) -> bool:
+        """Every group for object i next; False once the node budget is spent."""
+        o = self.objs[i]
+        reach = [c + manhattan(w, o.location) for c, w in zip(ca, where)]
+        order = sorted(range(len(ca)), key=lambda j: (reach[j], j))
+        rest = [x for x in left if x != i]
+        for group in itertools.combinations(order, o.required):
+            # Two consecutive objects with disjoint groups commute (neither sees the other):
+            # explore only the order with the lower object first.
+            if i < prev[0] and prev[1].isdisjoint(group):
+                continue
+            self.nodes += 1
+            start = max(reach[j] for j in group)
+            finish = start + self.carry[i]
+            ca2, where2 = list(ca), list(where)
+            for j in group:
+                ca2[j], where2[j] = finish, o.destination
+            if self.bound(ca2, where2, rest) >= self.best_cost:
+                continue
+            self.plan.append(Assignment(o.id, tuple(sorted(self.ids[j] for j in group)), start, finish))
+            self.dfs(ca2, where2, rest, (i, frozenset(group)))
+            self.plan.pop()
+            if self.nodes >= self.max_nodes:
+                self.proven = False
+                return False
+        return True
 
 
 def post_search_problem(scenario) -> tuple[list[int], list[int], list[Cell], list[Cell], list[ObjectSpec]]:
@@ -133,6 +143,6 @@ def post_search_problem(scenario) -> tuple[list[int], list[int], list[Cell], lis
 
     team = TeamInfo.from_scenario(scenario)
     close = int(team.sweep_lengths().max())
-    ends = [tuple(int(v) for v in e) for e in team.sweep_ends()]
+    ends: list[Cell] = [(int(e[0]), int(e[1])) for e in team.sweep_ends()]
     return (list(team.agent_ids), [close + 1] * team.size, ends, list(team.bases),
             list(scenario.objects))

@@ -8,7 +8,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ost_msgs_py.messages import Action
-
 from ost_ros import protocols
 from ost_ros.model import Scenario
 from ost_ros.result import RunResult

@@ -89,7 +89,7 @@ class RunResult:
         }
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "RunResult":
+    def from_dict(cls, d: dict[str, Any]) -> RunResult:
         """The inverse of :meth:`to_dict` (reads a result file of ``ost sim --json`` or a run)."""
         from ost_ros.coordination import Assignment
 
@@ -133,6 +133,6 @@ class RunResult:
         lines.append("")
         lines.append(f"{'agent':>5} {'cost':>8} {'idle':>8} {'carry':>8} {'search':>8} {'travel':>8}")
         for a in self.agents:
-            lines.append(f"{a.id:>5} {str(a.cost):>8} {a.idle:>8} {a.carry:>8} {a.search:>8} "
+            lines.append(f"{a.id:>5} {a.cost!s:>8} {a.idle:>8} {a.carry:>8} {a.search:>8} "
                          f"{a.travel:>8}")
         return "\n".join(lines)

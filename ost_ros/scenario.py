@@ -24,9 +24,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from ost_ros.model import DEFAULT_NMAX, AgentSpec, Grid, ObjectSpec, Scenario
-from ost_ros.partition import choose_partition, subareas
 from ost_ros import validate as v
+from ost_ros.model import DEFAULT_NMAX, AgentSpec, Grid, ObjectSpec, Scenario, Subarea
+from ost_ros.partition import choose_partition, subareas
 from ost_ros.validate import FieldError
 
 TOP_KEYS = ("grid", "partition", "agents", "objects", "nmax")
@@ -46,6 +46,29 @@ def build_scenario(grid: Grid, objects: list[ObjectSpec] | tuple[ObjectSpec, ...
     else ``n_agents`` (with the default partition); default bases are the subareas' sweep starts."""
     if grid.width < 1 or grid.height < 1:
         raise ScenarioError(f"grid: size must be positive, got {grid.width}x{grid.height}")
+    count = _team_size(agents, partition, n_agents)
+    partition, areas = _partition(grid, count, partition)
+    if agents is None:
+        agents = [AgentSpec(k, areas[k].start) for k in range(count)]
+    agents = sorted(agents, key=lambda a: a.id)
+    _check_agents(grid, agents)
+    if any(a.sweep for a in agents):
+        _check_coverage(grid, agents, areas)
+    objects = sorted(objects, key=lambda o: o.id)
+    largest = max((o.required for o in objects), default=1)
+    nmax = largest if nmax is None else nmax
+    if nmax < 1:
+        raise ScenarioError(f"nmax: must be at least 1, got {nmax}")
+    if nmax > count:
+        raise ScenarioError(f"nmax: {nmax} exceeds the team of {count} agents "
+                            f"(the task cannot be completed)")
+    _check_objects(grid, objects, nmax)
+    return Scenario(grid=grid, partition=(partition[0], partition[1]), agents=tuple(agents),
+                    objects=tuple(objects), nmax=nmax, subareas=areas)
+
+
+def _team_size(agents: list[AgentSpec] | None, partition: tuple[int, int] | None,
+               n_agents: int | None) -> int:
     if agents is not None:
         count = len(agents)
     elif partition is not None:
@@ -56,6 +79,12 @@ def build_scenario(grid: Grid, objects: list[ObjectSpec] | tuple[ObjectSpec, ...
         raise ScenarioError("agents: missing (give an agents list or a partition)")
     if count < 1:
         raise ScenarioError("agents: the team needs at least one agent")
+    return count
+
+
+def _partition(grid: Grid, count: int, partition: tuple[int, int] | None
+               ) -> tuple[tuple[int, int], tuple[Subarea, ...]]:
+    """The m×n partition (the default one for ``count`` agents if not given) and its subareas."""
     if partition is None:
         try:
             partition = choose_partition(count, grid)
@@ -67,12 +96,12 @@ def build_scenario(grid: Grid, objects: list[ObjectSpec] | tuple[ObjectSpec, ...
         raise ScenarioError(f"partition: {partition[0]}x{partition[1]} has "
                             f"{partition[0] * partition[1]} subareas for {count} agents")
     try:
-        areas = subareas(grid, partition)
+        return partition, tuple(subareas(grid, partition))
     except ValueError as exc:
         raise ScenarioError(f"partition: {exc}") from None
-    if agents is None:
-        agents = [AgentSpec(k, areas[k].start) for k in range(count)]
-    agents = sorted(agents, key=lambda a: a.id)
+
+
+def _check_agents(grid: Grid, agents: list[AgentSpec]) -> None:
     seen: set[int] = set()
     for k, a in enumerate(agents):
         if a.id in seen:
@@ -91,16 +120,9 @@ def build_scenario(grid: Grid, objects: list[ObjectSpec] | tuple[ObjectSpec, ...
             if not (0 <= x0 <= x1 < grid.width and 0 <= y0 <= y1 < grid.height):
                 raise ScenarioError(f"agents[{k}].forbidden[{i}]: {[x0, y0, x1, y1]} must satisfy "
                                     f"0 <= x0 <= x1 < {grid.width} and 0 <= y0 <= y1 < {grid.height}")
-    if any(a.sweep for a in agents):
-        _check_coverage(grid, agents, areas)
-    objects = sorted(objects, key=lambda o: o.id)
-    largest = max((o.required for o in objects), default=1)
-    nmax = largest if nmax is None else nmax
-    if nmax < 1:
-        raise ScenarioError(f"nmax: must be at least 1, got {nmax}")
-    if nmax > count:
-        raise ScenarioError(f"nmax: {nmax} exceeds the team of {count} agents "
-                            f"(the task cannot be completed)")
+
+
+def _check_objects(grid: Grid, objects: list[ObjectSpec], nmax: int) -> None:
     ids: set[int] = set()
     for k, o in enumerate(objects):
         where = f"objects[{k}]"
@@ -116,8 +138,6 @@ def build_scenario(grid: Grid, objects: list[ObjectSpec] | tuple[ObjectSpec, ...
             raise ScenarioError(f"{where}.destination: equals its location {list(o.location)}")
         if not 1 <= o.required <= nmax:
             raise ScenarioError(f"{where}.required: {o.required} is outside 1..nmax={nmax}")
-    return Scenario(grid=grid, partition=tuple(partition), agents=tuple(agents),
-                    objects=tuple(objects), nmax=nmax, subareas=areas)
 
 
 def _check_coverage(grid: Grid, agents: list[AgentSpec], areas) -> None:
@@ -207,8 +227,8 @@ def _scenario_from_dict(data: Any) -> Scenario:
         default = build_scenario(grid, [], n_agents=len(agents), partition=partition)
         order = sorted(range(len(agents)), key=lambda k: agents[k][0])
         bases = {agents[k][0]: default.subareas[rank].start for rank, k in enumerate(order)}
-        agents = [(aid, base if base is not None else bases[aid], *rest) for aid, base, *rest in agents]
-    team = None if agents is None else [AgentSpec(*a) for a in agents]
+        agents = [(aid, base if base is not None else bases[aid], *rest) for aid, base, *rest in agents]  # type: ignore[misc]
+    team = None if agents is None else [AgentSpec(*a) for a in agents]  # type: ignore[arg-type]
     return build_scenario(grid, objects, partition=partition, agents=team, nmax=nmax)
 
 

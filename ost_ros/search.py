@@ -51,7 +51,7 @@ def agent_plan(area: Subarea, base: Cell, sweep: tuple[Cell, ...] = ()) -> list[
     else its subarea's boustrophedon — from its base either way."""
     if not sweep:
         return sweep_plan(area, base)
-    points = [tuple(c) for c in sweep]
+    points: list[Cell] = [(c[0], c[1]) for c in sweep]
     return ([base] + points) if base != points[0] else points
 
 
@@ -68,7 +68,7 @@ class SweepSummary:
     end: Cell
 
     @classmethod
-    def of(cls, area: Subarea, base: Cell, sweep: tuple[Cell, ...] = ()) -> "SweepSummary":
+    def of(cls, area: Subarea, base: Cell, sweep: tuple[Cell, ...] = ()) -> SweepSummary:
         points = agent_plan(area, base, sweep)
         return cls(plan_length(points), points[-1])
 
@@ -87,7 +87,7 @@ class SearchModule:
     state: SearchState = SearchState.SWEEPING
 
     @classmethod
-    def for_area(cls, area: Subarea, base: Cell) -> "SearchModule":
+    def for_area(cls, area: Subarea, base: Cell) -> SearchModule:
         return cls(route(sweep_plan(area, base)))
 
     @property

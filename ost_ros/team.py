@@ -25,7 +25,7 @@ class TeamInfo:
     plans: tuple[tuple[Cell, ...], ...] = ()   # each agent's search waypoints (from its base)
 
     @classmethod
-    def from_scenario(cls, scenario: Scenario) -> "TeamInfo":
+    def from_scenario(cls, scenario: Scenario) -> TeamInfo:
         agents = scenario.agents  # sorted by id; agents[k] searches subareas[k]
         return cls(
             grid=scenario.grid,

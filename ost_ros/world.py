@@ -23,6 +23,7 @@ from ost_msgs_py.messages import FINISH_STATE, SEARCHING_STATE, Action, ActionKi
 from ost_ros.model import Cell, Scenario, can_move, group_period
 from ost_ros.motion import DIRECTIONS, apply
 from ost_ros.result import AgentRecord, ObjectRecord, RunResult
+
 _SENSE = tuple((dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1))
 
 
@@ -57,7 +58,7 @@ class World:
 
     def observe(self, agent_id: int) -> Observation:
         pos = self.positions[agent_id]
-        sensed = []
+        sensed: list[ObjectInfo] = []
         for dx, dy in _SENSE:
             ids = self._at.get((pos[0] + dx, pos[1] + dy))
             if ids:
@@ -75,52 +76,18 @@ class World:
         carries: dict[int, list[Action]] = defaultdict(list)
         acted: set[int] = set()
         for act in actions:
-            rec = self.records.get(act.agent)
-            if rec is None:
-                self.rejections.append(f"t={self.t}: action from unknown agent {act.agent}")
+            if not self._admit(act, acted):
                 continue
-            if act.agent in acted:
-                self._reject(act, "second action in one step")
-                continue
-            acted.add(act.agent)
-            if act.kind is ActionKind.CARRY:
-                self.carrying[act.agent] = act.object
-            else:
-                self.carrying.pop(act.agent, None)
-            if act.t != self.t:
-                self._reject(act, f"stamped for step {act.t}, world is at step {self.t}")
-                continue
-            if act.agent in self.failed:
-                self._reject(act, f"agent {act.agent} failed in step {self.failed[act.agent]}")
-                continue
-            pos = self.positions[act.agent]
-            if act.state != FINISH_STATE and rec.finished is not None:
-                rec.finished = None   # called back to work (a team mate failed)
-            if act.state == FINISH_STATE and rec.finished is None:
-                if pos == self.bases[act.agent]:
-                    rec.finished = self.t
-                else:
-                    self._reject(act, f"FINISH at {pos}, away from base {self.bases[act.agent]}")
+            self._finish(act)
             if act.kind is ActionKind.WAIT:
-                if rec.finished is None:
-                    rec.idle += 1
+                if self.records[act.agent].finished is None:
+                    self.records[act.agent].idle += 1
                 continue
-            if tuple(act.direction) not in DIRECTIONS:
-                self._reject(act, f"direction {act.direction} is not one 4-connected cell")
-                continue
-            target = apply(pos, act.direction)
-            if not self.scenario.grid.contains(target):
-                self._reject(act, f"{target} is off the grid")
+            target = self._target(act)
+            if target is None:
                 continue
             if act.kind is ActionKind.MOVE:
-                if not can_move(self.t, self.periods[act.agent]):
-                    self._reject(act, f"moves every {self.periods[act.agent]} steps, not in step {self.t}")
-                    continue
-                moves[act.agent] = target
-                if act.state == SEARCHING_STATE:
-                    rec.search += 1
-                else:
-                    rec.travel += 1
+                self._move(act, target, moves)
             else:
                 carries[act.object].append(act)
         for oid, group in carries.items():
@@ -128,6 +95,61 @@ class World:
         for agent, target in moves.items():
             self.positions[agent] = target
         self.t += 1
+
+    def _admit(self, act: Action, acted: set[int]) -> bool:
+        """Whether the action is from a live team member, its first of this step, for this step
+        (what its agent carries is noted even when it is not)."""
+        if act.agent not in self.records:
+            self.rejections.append(f"t={self.t}: action from unknown agent {act.agent}")
+            return False
+        if act.agent in acted:
+            self._reject(act, "second action in one step")
+            return False
+        acted.add(act.agent)
+        if act.kind is ActionKind.CARRY:
+            self.carrying[act.agent] = act.object
+        else:
+            self.carrying.pop(act.agent, None)
+        if act.t != self.t:
+            self._reject(act, f"stamped for step {act.t}, world is at step {self.t}")
+            return False
+        if act.agent in self.failed:
+            self._reject(act, f"agent {act.agent} failed in step {self.failed[act.agent]}")
+            return False
+        return True
+
+    def _finish(self, act: Action) -> None:
+        """An agent reporting FINISH at its base is done; any other state calls it back to work."""
+        rec = self.records[act.agent]
+        if act.state != FINISH_STATE and rec.finished is not None:
+            rec.finished = None   # called back to work (a team mate failed)
+        if act.state == FINISH_STATE and rec.finished is None:
+            pos = self.positions[act.agent]
+            if pos == self.bases[act.agent]:
+                rec.finished = self.t
+            else:
+                self._reject(act, f"FINISH at {pos}, away from base {self.bases[act.agent]}")
+
+    def _target(self, act: Action) -> Cell | None:
+        """The cell a move or carry leads to, or None (rejected) if it is not one cell on the grid."""
+        if tuple(act.direction) not in DIRECTIONS:
+            self._reject(act, f"direction {act.direction} is not one 4-connected cell")
+            return None
+        target = apply(self.positions[act.agent], act.direction)
+        if not self.scenario.grid.contains(target):
+            self._reject(act, f"{target} is off the grid")
+            return None
+        return target
+
+    def _move(self, act: Action, target: Cell, moves: dict[int, Cell]) -> None:
+        if not can_move(self.t, self.periods[act.agent]):
+            self._reject(act, f"moves every {self.periods[act.agent]} steps, not in step {self.t}")
+            return
+        moves[act.agent] = target
+        if act.state == SEARCHING_STATE:
+            self.records[act.agent].search += 1
+        else:
+            self.records[act.agent].travel += 1
 
     def _carry(self, oid: int, group: list[Action], moves: dict[int, Cell]) -> None:
         obj = self.objects.get(oid)
@@ -152,11 +174,11 @@ class World:
                 self.records[act.agent].idle += 1
             return
         target = apply(obj.at, here[0].direction)
-        group = tuple(sorted(a.agent for a in here))
+        carriers = tuple(sorted(a.agent for a in here))
         if obj.start is None:
             obj.start = self.t
-        if obj.carriers != group:   # first lift, or picked up again after a carrier failed
-            obj.carriers = group
+        if obj.carriers != carriers:   # first lift, or picked up again after a carrier failed
+            obj.carriers = carriers
         self._at[obj.at].discard(oid)
         obj.at = target
         for act in here:
@@ -267,7 +289,7 @@ class World:
         agents = [self.records[a.id] for a in self.scenario.agents]
         objects = [ObjectRecord(o.spec.id, o.carriers, o.start, o.delivered)
                    for o in sorted(self.objects.values(), key=lambda o: o.spec.id)]
-        finished = [r.finished for r in agents if r.id not in self.failed]
+        finished = [r.finished for r in agents if r.id not in self.failed and r.finished is not None]
         delivered = [o.delivered for o in objects]
         done = self.done
         left = self.undeliverable()

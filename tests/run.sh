@@ -2,6 +2,8 @@
 # The test command: sets up the venv if needed (idempotent), then runs the whole suite.
 #   tests/run.sh                 # everything
 #   tests/run.sh -k coordination # extra arguments go to pytest
+#   tests/run.sh -m "not dds"    # the in-process suite alone (no ROS processes)
+#   OST_LINT=0 tests/run.sh ...  # skip ruff and mypy (they run first otherwise; pyproject.toml)
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 venv="$(OST_SETUP_QUIET=1 bash "$repo/bringup_scripts/setup.sh" | tail -n 1)"
@@ -13,6 +15,11 @@ if [ "$(id -u)" = 0 ] && ! command -v nft >/dev/null && command -v apt-get >/dev
   (apt-get install -y -q nftables >/dev/null 2>&1 \
     || { apt-get update -q >/dev/null 2>&1 && apt-get install -y -q nftables >/dev/null 2>&1; }) \
     || echo "tests/run.sh: could not install nftables; the loss and multicast-blocking tests will skip" >&2
+fi
+# Lint, format and types first (seconds): the same checks for everyone (pyproject.toml).
+if [ "${OST_LINT:-1}" = 1 ]; then
+  "$venv/bin/ruff" check --quiet . && "$venv/bin/ruff" format --check --quiet . && "$venv/bin/mypy" \
+    || { echo "tests/run.sh: ruff or mypy found problems (above); OST_LINT=0 skips this step" >&2; exit 1; }
 fi
 # DDS tests pick their own ROS_DOMAIN_ID per run; all DDS traffic stays on this host's loopback
 # interface (bringup_scripts/dds_env.sh, docs/ros.md "Transport").

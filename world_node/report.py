@@ -16,7 +16,8 @@ def main(argv: list[str] | None = None) -> int:
         print("usage: python -m world_node.report RESULT.json [--json]", file=sys.stderr)
         return 2
     try:
-        text = open(argv[0]).read()
+        with open(argv[0]) as f:
+            text = f.read()
         data = json.loads(text)
         if "--json" in argv[1:]:
             print(json.dumps(data, indent=1))

@@ -21,13 +21,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ost_msgs_py.messages import Action, AgentLost, Observation
-from ost_msgs_py.runtime import ProtocolViolation, Acted, AgentReport, PlanStep, RunEnd, Tick
-from ost_ros.coordination import Assignment
+from ost_msgs_py.runtime import Acted, AgentReport, PlanStep, ProtocolViolation, RunEnd, Tick
+from ost_ros import protocols
+from ost_ros.coordination import Assignment, CoordinationPolicy
+from ost_ros.engines import step_limit
 from ost_ros.model import Scenario
 from ost_ros.result import RunResult
-from ost_ros import protocols
-from ost_ros.coordination import CoordinationPolicy
-from ost_ros.engines import step_limit
 from ost_ros.world import World
 
 

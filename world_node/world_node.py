@@ -20,6 +20,8 @@ reason that goes into the result.
 """
 from __future__ import annotations
 
+import contextlib
+import functools
 import json
 import os
 import pickle
@@ -114,9 +116,9 @@ class WorldNode(Node):
         self.failure_timeout = p["failure_timeout"]
         if p["failure_timeout"] > 0:
             for i in self.ids:
-                events = SubscriptionEventCallbacks(liveliness=lambda info, i=i: self.on_liveliness(i, info))
+                events = SubscriptionEventCallbacks(liveliness=functools.partial(self.on_liveliness, i))
                 self.sub_alive[i] = self.create_subscription(
-                    String, tp.alive_topic(i), lambda _msg, i=i: self.on_alive_sample(i),
+                    String, tp.alive_topic(i), functools.partial(self.on_alive_sample, i),
                     tp.alive_qos(p["failure_timeout"]), event_callbacks=events)
         self.timer = self.create_timer(0.1, self.on_timer)
         self.publish_state(self.rt.world.t)
@@ -311,7 +313,7 @@ class WorldNode(Node):
         if agent not in self.rt.failed:
             self.suspects.setdefault(agent, time.monotonic())
 
-    def on_alive_sample(self, agent: int) -> None:
+    def on_alive_sample(self, agent: int, _msg: String | None = None) -> None:
         """The agent's one sample on its alive topic: it is alive (with 50 agents some
         liveliness-changed events never fired at the start; the sample always arrives)."""
         self.alive_seen.add(agent)
@@ -383,10 +385,8 @@ class WorldNode(Node):
         self.get_logger().info(f"result: makespan {result.makespan}, completed {result.completed}; "
                                f"transport {json.dumps(stats)}")
         if self.result_file:
-            try:
+            with contextlib.suppress(OSError):   # the stats are a nicety; the result is written
                 Path(self.result_file + ".transport.json").write_text(json.dumps(stats) + "\n")
-            except OSError:
-                pass
 
 
 class ParameterError(ValueError):

@@ -11,8 +11,7 @@ from typing import Any
 from ost_ros import protocols
 from ost_ros import validate as v
 from ost_ros.bounds import lower_bound
-from ost_ros.commands.args import (failure, fraction, leaf, load_scenario_arg, natural, period_list,
-                                   positive)
+from ost_ros.commands.args import failure, fraction, leaf, load_scenario_arg, natural, period_list, positive
 from ost_ros.coordination import ORGANISATIONS, CoordinationPolicy, coordinate
 from ost_ros.engines import ENGINES, StepHook, check_failures, choose_engine, simulate
 from ost_ros.errors import UsageError

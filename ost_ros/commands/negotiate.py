@@ -5,6 +5,7 @@
     ost negotiate reproduce --out DIR [--quick] [--seed S] [--runs K] [--jobs J]
     ost negotiate partition [--file team.yaml] [--robots N --periods 1,2,1 --width W --height H] [--json] [--plot F.png]
     ost negotiate partition --scenario s.yaml [-o negotiated.yaml]
+    ost negotiate slots --scenario s.yaml [--delta D] [--json]
 """
 from __future__ import annotations
 
@@ -70,6 +71,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     part.add_argument("--plot", type=Path, help="write the ownership maps (negotiated, equal) to this PNG")
     part.set_defaults(func=cmd_partition, prog=part.prog)
 
+    slots = sub.add_parser("slots", help="the slot negotiation NCP runs: a scenario's objects allocated "
+                                         "after the whole search")
+    slots.add_argument("--scenario", type=Path, required=True, help="an OST scenario (YAML)")
+    slots.add_argument("--delta", type=float, help="claim discount per round, in (0, 1) (default 0.8)")
+    slots.add_argument("--timeout", type=int, help="rounds without an answer before a negotiator "
+                                                   "is left out (default 3)")
+    slots.add_argument("--json", action="store_true", help="print the result as JSON")
+    slots.set_defaults(func=cmd_slots, prog=slots.prog)
+
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1], prog=p.prog)
 
 
@@ -87,7 +97,7 @@ def load_task_file(path: Path) -> dict[str, Any]:
             import yaml
 
             data = yaml.safe_load(text)
-    except Exception as exc:  # noqa: BLE001 - any parser error is the user's file
+    except Exception as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise UsageError(f"task file {path} is not valid {'JSON' if path.suffix.lower() == '.json' else 'YAML'}: {first}") from None
     if not isinstance(data, dict):
@@ -95,15 +105,8 @@ def load_task_file(path: Path) -> dict[str, Any]:
     return data
 
 
-def build_from_spec(spec: dict[str, Any]):
+def build_from_spec(spec: dict[str, Any]) -> tuple[Any, list[Any], dict[str, Any]]:
     """(task, agents, options) from a plain dict: the file format and the flags share it."""
-    import numpy as np
-
-    from ost_ros.negotiation.agents import AgentSpec
-    from ost_ros.negotiation.rewards import AreaReward, TargetReward
-    from ost_ros.negotiation.scenarios import ROBOT_START
-    from ost_ros.negotiation.tasks import AreaTask, TargetTask, make_task_polygon, polygon_from_vertices
-
     known = {"task", "polygon", "area", "points", "weights", "targets", "robots", "delta", "strategy",
              "seed", "max_rounds", "drop_rule", "start"}
     extra = sorted(set(spec) - known)
@@ -113,7 +116,17 @@ def build_from_spec(spec: dict[str, Any]):
     if kind not in TASK_TYPES:
         raise NegotiationError(f"unknown task type {kind!r} (expected area or targets)")
     seed = _int(spec.get("seed", 0), "seed")
-    robots = spec.get("robots", 2)
+    entries = _robot_entries(spec.get("robots", 2))
+    deltas = _deltas(spec.get("delta", 0.98 if kind == "area" else 0.9), len(entries))
+    task = _task(kind, spec, seed)
+    agents = [_agent(i, e, d, kind, task, spec) for i, (e, d) in enumerate(zip(entries, deltas))]
+    opts = {"strategy": str(spec.get("strategy", "rounds")), "seed": seed,
+            "max_rounds": _int(spec.get("max_rounds", 400), "max_rounds"),
+            "drop_rule": str(spec.get("drop_rule", "farthest"))}
+    return task, agents, opts
+
+
+def _robot_entries(robots: Any) -> list[Any]:
     if isinstance(robots, list):
         entries = robots
     else:
@@ -123,51 +136,65 @@ def build_from_spec(spec: dict[str, Any]):
         entries = [{} for _ in range(n)]
     if not entries:
         raise NegotiationError("need at least one robot, got 0")
-    deltas = spec.get("delta", 0.98 if kind == "area" else 0.9)
+    return entries
+
+
+def _deltas(deltas: Any, robots: int) -> list[Any]:
+    """One discount factor per robot: a list, a comma-separated string, or one for all."""
     if isinstance(deltas, str):
         deltas = [d for d in deltas.split(",") if d.strip()]
     if not isinstance(deltas, list):
-        deltas = [deltas] * len(entries)
+        deltas = [deltas] * robots
     if len(deltas) == 1:
-        deltas = deltas * len(entries)
-    if len(deltas) != len(entries):
-        raise NegotiationError(f"got {len(deltas)} discount factors for {len(entries)} robots")
+        deltas = deltas * robots
+    if len(deltas) != robots:
+        raise NegotiationError(f"got {len(deltas)} discount factors for {robots} robots")
+    return deltas
+
+
+def _task(kind: str, spec: dict[str, Any], seed: int) -> Any:
+    import numpy as np
+
+    from ost_ros.negotiation.tasks import AreaTask, TargetTask, make_task_polygon, polygon_from_vertices
+
     if kind == "area":
         if "polygon" in spec:
-            task = AreaTask(polygon_from_vertices(spec["polygon"], "task polygon"))
-        else:
-            task = AreaTask(make_task_polygon(float(spec.get("area", 0.673))))
+            return AreaTask(polygon_from_vertices(spec["polygon"], "task polygon"))
+        return AreaTask(make_task_polygon(float(spec.get("area", 0.673))))
+    if "points" in spec:
+        return TargetTask.from_points(spec["points"], spec.get("weights"))
+    n = _int(spec.get("targets", 5), "targets")
+    if n < 1:
+        raise NegotiationError(f"need at least one target, got {n}")
+    return TargetTask.from_points(np.random.default_rng(seed).random((n, 2)))
+
+
+def _agent(i: int, e: Any, d: Any, kind: str, task: Any, spec: dict[str, Any]) -> Any:
+    """Robot i of the description: its discount factor and private reward."""
+    from ost_ros.negotiation.agents import AgentSpec
+    from ost_ros.negotiation.rewards import AreaReward, TargetReward
+    from ost_ros.negotiation.scenarios import ROBOT_START
+    from ost_ros.negotiation.tasks import polygon_from_vertices
+
+    if not isinstance(e, dict):
+        raise NegotiationError(f"robot {i + 1}: expected a mapping (delta:, start:, forbidden:)")
+    d = e.get("delta", d)
+    try:
+        d = float(d)
+    except (TypeError, ValueError):
+        raise NegotiationError(f"robot {i + 1}: discount factor must be a number, got {d!r}") from None
+    x, y = (float(v) for v in e.get("start", spec.get("start", ROBOT_START)))
+    start = (x, y)
+    reward: AreaReward | TargetReward
+    if kind == "area":
+        zone = e.get("forbidden")
+        reward = AreaReward(forbidden=polygon_from_vertices(zone, f"robot {i + 1} forbidden zone") if zone else None)
     else:
-        if "points" in spec:
-            task = TargetTask.from_points(spec["points"], spec.get("weights"))
-        else:
-            n = _int(spec.get("targets", 5), "targets")
-            if n < 1:
-                raise NegotiationError(f"need at least one target, got {n}")
-            task = TargetTask.from_points(np.random.default_rng(seed).random((n, 2)))
-    agents = []
-    for i, (e, d) in enumerate(zip(entries, deltas)):
-        if not isinstance(e, dict):
-            raise NegotiationError(f"robot {i + 1}: expected a mapping (delta:, start:, forbidden:)")
-        d = e.get("delta", d)
-        try:
-            d = float(d)
-        except (TypeError, ValueError):
-            raise NegotiationError(f"robot {i + 1}: discount factor must be a number, got {d!r}") from None
-        start = tuple(float(v) for v in e.get("start", spec.get("start", ROBOT_START)))
-        if kind == "area":
-            zone = e.get("forbidden")
-            reward = AreaReward(forbidden=polygon_from_vertices(zone, f"robot {i + 1} forbidden zone") if zone else None)
-        else:
-            forb = frozenset(int(j) for j in e.get("forbidden", []))
-            if any(not 0 <= j < task.n for j in forb):
-                raise NegotiationError(f"robot {i + 1}: forbidden target index out of range 0..{task.n - 1}")
-            reward = TargetReward(start=start, forbidden=forb)
-        agents.append(AgentSpec(d, reward, name=f"robot {i + 1}"))
-    opts = {"strategy": str(spec.get("strategy", "rounds")), "seed": seed,
-            "max_rounds": _int(spec.get("max_rounds", 400), "max_rounds"),
-            "drop_rule": str(spec.get("drop_rule", "farthest"))}
-    return task, agents, opts
+        forb = frozenset(int(j) for j in e.get("forbidden", []))
+        if any(not 0 <= j < task.n for j in forb):
+            raise NegotiationError(f"robot {i + 1}: forbidden target index out of range 0..{task.n - 1}")
+        reward = TargetReward(start=start, forbidden=forb)
+    return AgentSpec(d, reward, name=f"robot {i + 1}")
 
 
 def _int(v: Any, name: str) -> int:
@@ -257,8 +284,8 @@ def cmd_partition(args: argparse.Namespace) -> int:
                                 ("--width", args.width), ("--height", args.height)) if v is not None]
         if given:
             raise UsageError(f"--scenario: the team comes from the scenario, not {given[0]}")
-        from ost_ros.scenario import ScenarioError, dump_scenario, load_scenario
         from ost_ros.negotiation.partition import negotiated_scenario
+        from ost_ros.scenario import ScenarioError, dump_scenario, load_scenario
         try:
             base = load_scenario(args.scenario)
             scenario, result = negotiated_scenario(
@@ -288,4 +315,33 @@ def cmd_partition(args: argparse.Namespace) -> int:
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
             raise UsageError(f"cannot write plot {args.plot}: {first}") from None
     print(json.dumps(result.to_dict(), indent=2) if args.json else result.table())
+    return 0
+
+
+def cmd_slots(args: argparse.Namespace) -> int:
+    """Every object of the scenario negotiated at once, as NCP does when it coordinates only after
+    the whole search (CI > M): robots at the ends of their sweeps, free one step after the last
+    search ends. The same :mod:`ost_ros.negotiation.slots` code NCP's comm modules run."""
+    from ost_ros.negotiation.slots import NegotiationSettings, after_search, negotiate_slots
+    from ost_ros.scenario import ScenarioError, load_scenario
+
+    try:
+        scenario = load_scenario(args.scenario)
+        settings = NegotiationSettings(**{k: v for k, v in (("delta", args.delta),
+                                                             ("timeout_rounds", args.timeout)) if v is not None})
+    except (ScenarioError, NegotiationError) as exc:
+        raise UsageError(str(exc)) from None
+    objects, reach, ids = after_search(scenario)
+    if not objects:
+        raise UsageError(f"{args.scenario}: no objects to negotiate")
+    neg, moves = negotiate_slots(objects, reach, ids, settings)
+    groups = neg.groups(ids)
+    if args.json:
+        print(json.dumps({"rounds": neg.round, "moves": moves, "forced": neg.forced,
+                          "groups": {str(o): list(g) for o, g in groups.items()}}, indent=1))
+        return 0
+    how = "closed by the protection rule" if neg.forced else "everyone left with an uncontested claim"
+    print(f"{len(objects)} objects, {len(ids)} robots: {neg.round} rounds, {moves} moves ({how})")
+    for o in objects:
+        print(f"object {o.id:>4} (needs {o.required}): robots {list(groups[o.id])}")
     return 0

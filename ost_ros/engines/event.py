@@ -63,7 +63,7 @@ class _Hits:
 def _quiet(agent: ProtocolAgent, world: World, hits: _Hits) -> Quiet:
     """The agent's settled first segment and how many steps of it are safe (None: it decides now)."""
     plan = agent.plan(world.t, world.positions[agent.id])
-    if not plan or plan[0].state != agent.phase:
+    if not plan.settled:
         return None
     seg, steps = plan[0], plan[0].steps
     if seg.kind == "sweep":
@@ -91,12 +91,22 @@ def _plans(agents: list[ProtocolAgent], world: World, hits: _Hits, cache: list[Q
     # The world settles an object's group together: if the group is complete (it moves now) or
     # any member decides (e.g. arrives), every member holding or carrying it acts for real.
     for oid, members in groups.items():
-        holding = sum(1 for j in members if plans[j] is not None and plans[j][0].kind == "hold")
+        holding = sum(1 for j in members if (q := plans[j]) is not None and q[0].kind == "hold")
         if holding >= world.objects[oid].spec.required or any(plans[j] is None for j in members):
             for j in members:
                 q = plans[j]
                 if q is None or q[0].kind in ("hold", "carry"):
                     plans[j] = None
+    # A carry moves only with its whole group: if fewer than n_i carriers of an object are quiet
+    # (another one joins by acting for real, e.g. after delivering its last object), all act.
+    carriers: dict[int, list[int]] = {}
+    for j, q in enumerate(plans):
+        if q is not None and q[0].kind == "carry":
+            carriers.setdefault(q[0].object, []).append(j)
+    for oid, js in carriers.items():
+        if len(js) < world.objects[oid].spec.required:
+            for j in js:
+                plans[j] = None
     return plans
 
 

@@ -7,15 +7,15 @@ others left), or leaving with its current claim (the exit option).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 from shapely.geometry import Polygon
 
 from .errors import NegotiationError
-from .protocol import ProtocolState, validate_delta
 from .proposals import AreaSearch, drop_targets, propose_area, ring_coords
+from .protocol import ProtocolState, validate_delta
 from .rewards import AreaReward, TargetReward
 from .tasks import AreaTask, TargetTask, hole_free, largest_polygon
 
@@ -55,9 +55,10 @@ class AreaNegotiator:
     exit_overlap: float = 0.02    # exit when own overlap ≤ this fraction of dim(T0)
 
     def __post_init__(self) -> None:
-        self.reward: AreaReward = self.spec.reward or AreaReward()
-        if not isinstance(self.reward, AreaReward):
+        reward = self.spec.reward or AreaReward()
+        if not isinstance(reward, AreaReward):
             raise NegotiationError(f"agent {self.agent_id}: an area task needs an AreaReward")
+        self.reward: AreaReward = reward
         self.state = ProtocolState(self.spec.delta, self.first)
         self.claim: Polygon = Polygon()
         self.prediction: float | None = None
@@ -148,9 +149,10 @@ class TargetNegotiator:
     rule: str = "farthest"
 
     def __post_init__(self) -> None:
-        self.reward: TargetReward = self.spec.reward or TargetReward()
-        if not isinstance(self.reward, TargetReward):
+        target_reward = self.spec.reward or TargetReward()
+        if not isinstance(target_reward, TargetReward):
             raise NegotiationError(f"agent {self.agent_id}: a target task needs a TargetReward")
+        self.reward: TargetReward = target_reward
         self.state = ProtocolState(self.spec.delta, self.first)
         self.claim: frozenset[int] = frozenset()
         self.prediction: float | None = None

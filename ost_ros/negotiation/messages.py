@@ -44,7 +44,7 @@ class Offer:
                 "receiver": self.receiver, "kind": self.kind, "params": [float(v) for v in self.params]}
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> "Offer":
+    def from_dict(cls, data: dict[str, Any]) -> Offer:
         try:
             return cls(round=int(data["round"]), period=int(data["period"]), sender=int(data["sender"]),
                        receiver=int(data.get("receiver", BROADCAST)), kind=str(data["kind"]),

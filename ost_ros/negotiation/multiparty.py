@@ -6,9 +6,10 @@ task type and decoded by the receiver, exactly what a transport would carry.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from itertools import combinations
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -79,84 +80,101 @@ def negotiate(task: AreaTask | TargetTask, agents: Sequence[AgentSpec], strategy
         raise NegotiationError("need at least one robot to negotiate")
     if max_rounds < 1:
         raise NegotiationError("max_rounds must be at least 1")
-    rng = np.random.default_rng(seed)
-    rngs = rng.spawn(len(agents))
-    if isinstance(task, AreaTask):
-        if not 0.0 <= exit_overlap < 1.0:
-            raise NegotiationError(f"exit_overlap must be in [0, 1), got {exit_overlap:g}")
-        negs = [AreaNegotiator(i, a, task, i == 0, rngs[i], search or AreaSearch(), exit_overlap)
-                for i, a in enumerate(agents)]
-    elif isinstance(task, TargetTask):
-        negs = [TargetNegotiator(i, a, task, i == 0, rngs[i], drop_rule) for i, a in enumerate(agents)]
-    else:
-        raise NegotiationError(f"unknown task type {type(task).__name__}")
-
-    r_n = len(negs)
-    public = [None] * r_n            # what each agent last announced, decoded from messages
-    exited: set[int] = set()
-    log: list[Offer] = []
-    snaps: list[dict[str, Any]] = []
-    period = 0
-    accepted = False
-
-    def send(rnd: int, sender: int, receiver: int, kind: str, claim) -> None:
-        nonlocal period
-        msg = Offer(rnd, period, sender, receiver, kind, task.encode(claim) if claim is not None else ())
-        log.append(Offer.from_dict(msg.to_dict()))   # the wire format, round-tripped
-        public[sender] = task.decode(log[-1].params)
-        period += 1
-
-    def claims_now() -> list:
-        return [p if p is not None else task.full() for p in public]
-
+    session = _Session(task, _negotiators(task, agents, seed, search, drop_rule, exit_overlap), trace)
     rnd = 0
     for rnd in range(max_rounds):
-        active = [i for i in range(r_n) if i not in exited]
-        if not active or accepted:
+        active = [i for i in range(session.size) if i not in session.exited]
+        if not active or session.accepted:
             break
-        # Rotate the starter so nobody is privileged (§3.3); two agents simply alternate.
-        start = rnd % r_n if r_n > 2 else 0
-        order = sorted(active, key=lambda i: (i - start) % r_n)
-        unopened = [i for i in order if public[i] is None]
-        if strategy == "rounds" or unopened:
-            # everyone states an opening claim before anyone may judge the others' offers
-            turns = [(i, None) for i in (unopened or order)]
-        else:
-            turns = [(i, j) for i in order for j in order if j != i] or [(order[0], None)]
-        for i, j in turns:
-            if i in exited or accepted:
-                continue
-            if j is not None and j in exited:
-                continue
-            others = [public[k] for k in range(r_n) if k != i and public[k] is not None]
-            if j is None:
-                opponents = others
-            else:
-                opponents = [public[k] for k in range(r_n) if public[k] is not None and (k == j or k in exited)]
-            live = [k for k in range(r_n) if k != i and k not in exited]
-            bilateral = len(live) == 1 and public[live[0]] is not None
-            fixed = [public[k] for k in sorted(exited) if public[k] is not None]
-            d = negs[i].turn(others, opponents, bilateral, alone=not live, fixed=fixed)
-            if d.kind == "accept" and not live:
-                send(rnd, i, BROADCAST, "exit", d.claim)
-                exited.add(i)
-            elif d.kind == "accept":
-                # the accepting agent takes what the partner left and says so: the message
-                # carries its share, the accepted offer is the partner's last one
-                send(rnd, i, live[0], "accept", d.claim)
-                accepted = True
-                exited.update(range(r_n))
-            elif d.kind == "exit":
-                send(rnd, i, BROADCAST, "exit", d.claim)
-                exited.add(i)
-            else:
-                send(rnd, i, BROADCAST if j is None else j, "offer", d.claim)
-            if trace:
-                snaps.append(_snapshot(task, claims_now(), exited, period, rnd, i, d.kind,
-                                       [n.prediction for n in negs]))
-        if len(exited) == r_n:
+        session.round(rnd, active, strategy)
+        if len(session.exited) == session.size:
             break
     else:
         rnd = max_rounds - 1
-    status = "agreed" if len(exited) == r_n else "timeout"
-    return NegotiationResult(task, claims_now(), status, rnd + 1, len(log), snaps, log)
+    status = "agreed" if len(session.exited) == session.size else "timeout"
+    return NegotiationResult(task, session.claims_now(), status, rnd + 1, len(session.log),
+                             session.snaps, session.log)
+
+
+def _negotiators(task: AreaTask | TargetTask, agents: Sequence[AgentSpec], seed: int,
+                 search: AreaSearch | None, drop_rule: str, exit_overlap: float) -> list:
+    rngs = np.random.default_rng(seed).spawn(len(agents))
+    if isinstance(task, AreaTask):
+        if not 0.0 <= exit_overlap < 1.0:
+            raise NegotiationError(f"exit_overlap must be in [0, 1), got {exit_overlap:g}")
+        return [AreaNegotiator(i, a, task, i == 0, rngs[i], search or AreaSearch(), exit_overlap)
+                for i, a in enumerate(agents)]
+    if isinstance(task, TargetTask):
+        return [TargetNegotiator(i, a, task, i == 0, rngs[i], drop_rule) for i, a in enumerate(agents)]
+    raise NegotiationError(f"unknown task type {type(task).__name__}")
+
+
+class _Session:
+    """The public state of a negotiation: what each agent last announced (decoded from its
+    messages), who has left, the message log."""
+
+    def __init__(self, task: AreaTask | TargetTask, negs: list, trace: bool):
+        self.task, self.negs, self.trace = task, negs, trace
+        self.size = len(negs)
+        self.public: list[Any] = [None] * self.size
+        self.exited: set[int] = set()
+        self.log: list[Offer] = []
+        self.snaps: list[dict[str, Any]] = []
+        self.period = 0
+        self.accepted = False
+
+    def send(self, rnd: int, sender: int, receiver: int, kind: str, claim: Any) -> None:
+        task = self.task
+        msg = Offer(rnd, self.period, sender, receiver, kind, task.encode(claim) if claim is not None else ())
+        self.log.append(Offer.from_dict(msg.to_dict()))   # the wire format, round-tripped
+        self.public[sender] = task.decode(self.log[-1].params)
+        self.period += 1
+
+    def claims_now(self) -> list:
+        return [p if p is not None else self.task.full() for p in self.public]
+
+    def round(self, rnd: int, active: list[int], strategy: str) -> None:
+        r_n = self.size
+        # Rotate the starter so nobody is privileged (§3.3); two agents simply alternate.
+        start = rnd % r_n if r_n > 2 else 0
+        order = sorted(active, key=lambda i: (i - start) % r_n)
+        unopened = [i for i in order if self.public[i] is None]
+        if strategy == "rounds" or unopened:
+            # everyone states an opening claim before anyone may judge the others' offers
+            turns: list[tuple[int, int | None]] = [(i, None) for i in (unopened or order)]
+        else:
+            turns = [(i, j) for i in order for j in order if j != i] or [(order[0], None)]
+        for i, j in turns:
+            if i in self.exited or self.accepted or (j is not None and j in self.exited):
+                continue
+            self.turn(rnd, i, j)
+
+    def turn(self, rnd: int, i: int, j: int | None) -> None:
+        """Agent i answers everyone's claims (j None) or agent j's alone."""
+        public, exited, r_n = self.public, self.exited, self.size
+        others = [public[k] for k in range(r_n) if k != i and public[k] is not None]
+        if j is None:
+            opponents = others
+        else:
+            opponents = [public[k] for k in range(r_n) if public[k] is not None and (k == j or k in exited)]
+        live = [k for k in range(r_n) if k != i and k not in exited]
+        bilateral = len(live) == 1 and public[live[0]] is not None
+        fixed = [public[k] for k in sorted(exited) if public[k] is not None]
+        d = self.negs[i].turn(others, opponents, bilateral, alone=not live, fixed=fixed)
+        if d.kind == "accept" and not live:
+            self.send(rnd, i, BROADCAST, "exit", d.claim)
+            exited.add(i)
+        elif d.kind == "accept":
+            # the accepting agent takes what the partner left and says so: the message
+            # carries its share, the accepted offer is the partner's last one
+            self.send(rnd, i, live[0], "accept", d.claim)
+            self.accepted = True
+            exited.update(range(r_n))
+        elif d.kind == "exit":
+            self.send(rnd, i, BROADCAST, "exit", d.claim)
+            exited.add(i)
+        else:
+            self.send(rnd, i, BROADCAST if j is None else j, "offer", d.claim)
+        if self.trace:
+            self.snaps.append(_snapshot(self.task, self.claims_now(), exited, self.period, rnd, i,
+                                        d.kind, [n.prediction for n in self.negs]))

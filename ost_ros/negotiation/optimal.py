@@ -8,18 +8,19 @@ Robots sharing a start are interchangeable, so an empty robot is only tried once
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import permutations, product
-from typing import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import NegotiationError
 
 MAX_TARGETS = 14  # 2^N·N² table; beyond this use a heuristic, not this solver
 
 
-def subset_route_costs(start: Sequence[float], points: np.ndarray) -> np.ndarray:
+def subset_route_costs(start: ArrayLike, points: np.ndarray) -> np.ndarray:
     """cost[mask] = length of the shortest open path from ``start`` visiting the targets in mask."""
     pts = np.asarray(points, dtype=float)
     n = len(pts)
@@ -48,7 +49,7 @@ def subset_route_costs(start: Sequence[float], points: np.ndarray) -> np.ndarray
     return cost
 
 
-def route_length(start: Sequence[float], points: np.ndarray) -> float:
+def route_length(start: ArrayLike, points: np.ndarray) -> float:
     """Shortest open path from start through all points (exact)."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     return float(subset_route_costs(start, pts)[(1 << len(pts)) - 1]) if len(pts) else 0.0
@@ -76,7 +77,7 @@ def evaluate_allocation(starts: np.ndarray, points: np.ndarray, shares: Sequence
     return Allocation(tuple(frozenset(s) for s in shares), lengths)
 
 
-def optimal_allocation(starts: Sequence[Sequence[float]], points: Sequence[Sequence[float]],
+def optimal_allocation(starts: ArrayLike, points: ArrayLike,
                        objective: str = "total") -> Allocation:
     """Exact optimum over all assignments: objective "total" (sum of route lengths) or
     "max" (longest individual route, i.e. mission time)."""
@@ -93,7 +94,8 @@ def optimal_allocation(starts: Sequence[Sequence[float]], points: Sequence[Seque
     combine = (lambda a, b: a + b) if objective == "total" else max
     # Assign far targets first: they decide most of the cost, so good bounds come early.
     order = sorted(range(n), key=lambda j: -min(np.hypot(*(pts[j] - s)) for s in st))
-    best = [np.inf, None]
+    best_value = np.inf
+    best_masks: list[int] = []
     masks = [0] * r
 
     def value() -> float:
@@ -103,11 +105,12 @@ def optimal_allocation(starts: Sequence[Sequence[float]], points: Sequence[Seque
         return v
 
     def dfs(depth: int) -> None:
+        nonlocal best_value, best_masks
         v = value()
-        if v >= best[0] - 1e-12:
+        if v >= best_value - 1e-12:
             return
         if depth == n:
-            best[0], best[1] = v, list(masks)
+            best_value, best_masks = v, list(masks)
             return
         j = order[depth]
         tried_empty: set[tuple[float, float]] = set()
@@ -121,11 +124,11 @@ def optimal_allocation(starts: Sequence[Sequence[float]], points: Sequence[Seque
             masks[i] &= ~(1 << j)
 
     dfs(0)
-    shares = tuple(frozenset(j for j in range(n) if m >> j & 1) for m in best[1])
-    return Allocation(shares, tuple(float(cost[i][m]) for i, m in enumerate(best[1])))
+    shares = tuple(frozenset(j for j in range(n) if m >> j & 1) for m in best_masks)
+    return Allocation(shares, tuple(float(cost[i][m]) for i, m in enumerate(best_masks)))
 
 
-def brute_force_allocation(starts: Sequence[Sequence[float]], points: Sequence[Sequence[float]],
+def brute_force_allocation(starts: ArrayLike, points: ArrayLike,
                            objective: str = "total") -> float:
     """Reference for tests: every assignment, every visiting order. Tiny cases only."""
     st = np.asarray(starts, dtype=float).reshape(-1, 2)

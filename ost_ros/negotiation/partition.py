@@ -21,9 +21,10 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import shapely
@@ -118,7 +119,7 @@ class SearchTeam:
         return ok
 
     @classmethod
-    def from_spec(cls, spec: dict[str, Any]) -> "SearchTeam":
+    def from_spec(cls, spec: dict[str, Any]) -> SearchTeam:
         """Build from the YAML/flag dict: ``grid: {width, height}``, ``robots:`` (a count or a
         list of ``{id, period, forbidden}``), ``delta``, ``seed``, ``max_rounds``, ``rule``."""
         from ost_ros.validate import FieldError, integer, listing, mapping
@@ -139,11 +140,12 @@ class SearchTeam:
             for i, e in enumerate(entries):
                 where = f"robots[{i}]"
                 mapping(e, where, ROBOT_KEYS)
-                zones = []
+                zones: list[tuple[int, int, int, int]] = []
                 for k, z in enumerate(listing(e.get("forbidden", []), f"{where}.forbidden")):
                     if not isinstance(z, (list, tuple)) or len(z) != 4:
                         raise FieldError(f"{where}.forbidden[{k}]: expected [x0, y0, x1, y1], got {z!r}")
-                    zones.append(tuple(integer(v, f"{where}.forbidden[{k}]", 0) for v in z))
+                    x0, y0, x1, y1 = (integer(v, f"{where}.forbidden[{k}]", 0) for v in z)
+                    zones.append((x0, y0, x1, y1))
                 robots.append(SearchRobot(integer(e.get("id", i), f"{where}.id", 0),
                                           integer(e.get("period", 1), f"{where}.period", 1), tuple(zones)))
             delta = spec.get("delta", 0.95)
@@ -443,7 +445,7 @@ def region_sweep(mask: np.ndarray) -> list[Cell]:
                 points += [(a, y), (b, y)]
             if best is None or sweep_length(points) < sweep_length(best):
                 best = points
-    return best
+    return best or []
 
 
 def sweep_length(points: Sequence[Cell]) -> int:
@@ -632,7 +634,7 @@ def plot_partition(result: PartitionResult, path: str | Path) -> None:
         ax.set_ylim(team.height - 0.5, -0.5)   # rows grow downward, as the sweep's
         ax.set_aspect("equal")
         ax.set_title(title, fontsize=10)
-    for i, pts in enumerate(result.routes):
+    for pts in result.routes:
         if pts:
             xy = np.array(sweep_path(pts))
             axes[0].plot(xy[:, 0], xy[:, 1], color="k", lw=0.5, alpha=0.6)

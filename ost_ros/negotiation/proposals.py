@@ -10,8 +10,8 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 import shapely
@@ -189,7 +189,7 @@ def drop_targets(task: TargetTask, reward: TargetReward, prev: frozenset[int], c
             break
         base_route = route_length(start, task.points[sorted(cur)]) if rule == "path" else 0.0
 
-        def key(j: int) -> tuple[float, float]:
+        def key(j: int, base_route: float = base_route) -> tuple[float, float]:
             rest = frozenset(cur - {j})
             gain = reward.value(task, rest, others)
             if rule == "farthest":

@@ -7,8 +7,8 @@ reference negotiation (``alternating_offers_1d``) checks the machinery against t
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 from .errors import NegotiationError
 

@@ -12,6 +12,7 @@ import platform
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
@@ -19,8 +20,7 @@ import numpy as np
 
 from .proposals import AreaSearch
 from .protocol import rubinstein_share
-from .scenarios import (FIG4_DELTAS, TARGET_DELTA, PaperValues, fig4, nfz_run,
-                        table2_run, target_run)
+from .scenarios import FIG4_DELTAS, TARGET_DELTA, PaperValues, fig4, nfz_run, table2_run, target_run
 
 AREA_VARIANTS = {"strict": AreaSearch(min_scale=1.0), "undercut": AreaSearch(min_scale=0.9)}
 T2_METRICS = ("overlap_pct", "G", "covered_pct", "out_pct", "rounds")
@@ -64,7 +64,8 @@ def run_jobs(jobs: list[tuple[str, tuple]], workers: int, progress: bool) -> dic
             results[(k, a)] = r
             bar.update()
     else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
+        # forkserver: the calling process may hold threads (tqdm, rclpy), so plain fork is unsafe
+        with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("forkserver")) as pool:
             futs = [pool.submit(_job, kind, args) for kind, args in jobs]
             for f in as_completed(futs):
                 k, a, r = f.result()
@@ -193,7 +194,7 @@ def _nfz(out: Path, results: dict, n_nfz: int, seed: int) -> dict:
     ax.fill(z[:, 0], z[:, 1], color="tab:blue", alpha=0.8, label="NFZ (robot 2 only)")
     ax.set_aspect("equal")
     ax.legend(fontsize=7, loc="lower right")
-    ax.set_title("§2.2 no-fly zone, seed %d" % runs[0]["seed"], fontsize=9)
+    ax.set_title(f"§2.2 no-fly zone, seed {runs[0]['seed']:d}", fontsize=9)
     fig.tight_layout()
     fig.savefig(out / "nfz.png", dpi=120)
     plt.close(fig)

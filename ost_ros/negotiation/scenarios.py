@@ -4,7 +4,7 @@ worker process."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from shapely.geometry import Polygon, box
@@ -28,7 +28,7 @@ def fig4(seed: int = 0, search: AreaSearch | None = None) -> NegotiationResult:
     return negotiate(task, [AgentSpec(d) for d in FIG4_DELTAS], seed=seed, search=search)
 
 
-def table2_run(robots: int, seed: int, search: AreaSearch | None = None) -> dict[str, float]:
+def table2_run(robots: int, seed: int, search: AreaSearch | None = None) -> dict[str, Any]:
     """One run of Table 2: R agents, δ = 0.98, the 6-vertex polygon of area 0.673."""
     task = AreaTask(make_task_polygon(0.673))
     res = negotiate(task, [AgentSpec(AREA_DELTA)] * robots, seed=seed, search=search, trace=False)
@@ -42,7 +42,7 @@ def table2_run(robots: int, seed: int, search: AreaSearch | None = None) -> dict
 def nfz_zone(task: AreaTask) -> Polygon:
     """A 0.03-area square no-fly zone in a corner of T0 (§2.2: dim(NFZ) = 0.03)."""
     side = 0.03 ** 0.5
-    minx, miny, maxx, maxy = task.t0.bounds
+    minx, _, maxx, maxy = task.t0.bounds
     cx = (minx + maxx) / 2
     zone = box(cx - side / 2, maxy - 0.12 - side, cx + side / 2, maxy - 0.12)
     return zone.intersection(task.t0)
@@ -94,11 +94,11 @@ def target_run(n: int, robots: int, run: int, strategy: str = "rounds", rule: st
 class PaperValues:
     """Values printed in the paper (Tables 2–4), rows R, for the side-by-side report."""
 
-    table2 = {2: (0.9, 0.66, 97.8, 0.07, 19), 3: (2.4, 0.66, 97.6, 0.03, 44),
+    table2: ClassVar[dict[int, tuple[float, ...]]] = {2: (0.9, 0.66, 97.8, 0.07, 19), 3: (2.4, 0.66, 97.6, 0.03, 44),
               4: (0.95, 0.64, 94.8, 0.96, 59), 5: (1.6, 0.65, 95.7, 0.98, 66)}
-    table3 = {2: (5.5, 3.5, 11.3, 1.6, 4.3, 24.1), 3: (130.2, 34.6, 12.4, 10.1, 18.2, 13.9),
+    table3: ClassVar[dict[int, tuple[float, ...]]] = {2: (5.5, 3.5, 11.3, 1.6, 4.3, 24.1), 3: (130.2, 34.6, 12.4, 10.1, 18.2, 13.9),
               4: (102.6, 51.5, 17.6, 21.1, 16.8, 6.4), 5: (137.0, 99.4, 112.7, 33.9, 58.6, 29.6),
               6: (198.6, 141.7, 59.3, 36.7, 46.4, 34.2), 7: (56.2, 144.7, 77.2, 85.2, 32.3, 32.2)}
-    table4 = {2: (20.8, 45.7, 59.9, 56.6, 65.9, 74.2), 3: (0.5, 35.7, 46.8, 56.6, 58.6, 61.1),
+    table4: ClassVar[dict[int, tuple[float, ...]]] = {2: (20.8, 45.7, 59.9, 56.6, 65.9, 74.2), 3: (0.5, 35.7, 46.8, 56.6, 58.6, 61.1),
               4: (36.5, 37.9, 49.7, 54.0, 57.7, 63.0), 5: (27.9, 49.6, 42.0, 55.6, 53.8, 55.1),
               6: (22.4, 31.4, 56.6, 55.9, 61.6, 60.9), 7: (1.3, 32.9, 51.2, 58.5, 57.5, 60.1)}

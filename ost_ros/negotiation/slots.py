@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ost_msgs_py.messages import NegotiationOffer, ObjectInfo
+from ost_ros.model import Scenario, arrival_np
 
 from .errors import NegotiationError
 from .protocol import claim_size, validate_delta
@@ -57,7 +58,7 @@ class NegotiationSettings:
 
 def claim_cap(delta: float, r: int, size: int) -> int:
     """Objects an agent may claim in round ``r``: ⌊δ^r · B⌋ (the whole batch in round 0)."""
-    return int(math.floor(claim_size(delta, r, float(size)) + 1e-9))
+    return math.floor(claim_size(delta, r, float(size)) + 1e-9)
 
 
 def protected(claims: np.ndarray, reach: np.ndarray, need: np.ndarray,
@@ -127,7 +128,7 @@ class SlotNegotiation:
     _prot: np.ndarray | None = None    # protected() of the current round, once computed
 
     @classmethod
-    def open(cls, number: int, objects: list, reach: np.ndarray) -> "SlotNegotiation":
+    def open(cls, number: int, objects: list, reach: np.ndarray) -> SlotNegotiation:
         n, b = reach.shape[1], len(objects)
         return cls(number, tuple(o.id for o in objects),
                    np.array([o.required for o in objects], dtype=np.int64), reach,
@@ -206,7 +207,7 @@ class SlotNegotiation:
                 continue
             self.missing[k] = 0
             new_claims[k] = row
-            self.exited[k] = msg.kind == "exit"
+            self.exited[k] = msg is not None and msg.kind == "exit"
         self.claims = new_claims
         self._prot = None
         self.round += 1
@@ -269,3 +270,19 @@ def negotiate_slots(objects: Sequence[ObjectInfo], reach: np.ndarray, agent_ids:
         sent += len(moves)
         neg.apply(moves, ids, settings)
     return neg, sent
+
+
+def after_search(scenario: Scenario) -> tuple[list[ObjectInfo], np.ndarray, tuple[int, ...]]:
+    """The negotiation NCP opens once every robot has searched (CI > M): every object, and each
+    robot's public cost C_ij of reaching it from the end of its sweep, free the step after the
+    last search ends. Returns (objects, reach (B, N), agent ids)."""
+    from ost_ros.team import TeamInfo
+
+    team = TeamInfo.from_scenario(scenario)
+    close = int(team.sweep_lengths().max())
+    where = np.array([o.location for o in scenario.objects], dtype=np.int64).reshape(-1, 2)
+    ends = team.sweep_ends()
+    dist = np.abs(where[:, None, :] - ends[None, :, :]).sum(axis=2)
+    reach = arrival_np(np.full(team.size, close + 1, dtype=np.int64)[None, :], dist,
+                       team.period_array()[None, :])
+    return list(scenario.objects), reach, team.agent_ids

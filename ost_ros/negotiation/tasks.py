@@ -7,11 +7,12 @@ union and "outside T0" on its sub-tasks, and how a sub-task maps to/from a flat 
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 import shapely
+from numpy.typing import ArrayLike
 from shapely.geometry import MultiPolygon, Polygon, box
 from shapely.geometry.base import BaseGeometry
 
@@ -74,7 +75,7 @@ def hole_free(poly: Polygon) -> Polygon:
     while not poly.is_empty and poly.interiors:
         hole = Polygon(poly.interiors[0])
         x = hole.centroid.x
-        minx, miny, maxx, maxy = poly.bounds
+        minx, miny, _, maxy = poly.bounds
         left = box(minx - 1, miny - 1, x, maxy + 1)
         sides = [largest_polygon(poly.intersection(left)), largest_polygon(poly.difference(left))]
         poly = max(sides, key=lambda p: p.area)
@@ -89,7 +90,7 @@ class AreaTask:
     kind: str = field(default="area", init=False)
 
     @classmethod
-    def from_vertices(cls, vertices: Sequence[Sequence[float]]) -> "AreaTask":
+    def from_vertices(cls, vertices: Sequence[Sequence[float]]) -> AreaTask:
         return cls(polygon_from_vertices(vertices, "task polygon"))
 
     @property
@@ -163,8 +164,8 @@ class TargetTask:
         object.__setattr__(self, "weights", w)
 
     @classmethod
-    def from_points(cls, points: Sequence[Sequence[float]], weights: Sequence[float] | None = None) -> "TargetTask":
-        pts = np.asarray(points, dtype=float) if len(points) else np.zeros((0, 2))
+    def from_points(cls, points: ArrayLike, weights: ArrayLike | None = None) -> TargetTask:
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
         return cls(pts, np.ones(len(pts)) if weights is None else np.asarray(weights, dtype=float))
 
     @property

@@ -66,8 +66,7 @@ class ProtocolAgent(Protocol):
     def plan(self, t: int, position: Cell) -> Plan:
         """The steps from ``t`` on (standing at ``position``, its comm module done with step
         t-1) that it takes without a word, provided no message reaches it and its sensor shows
-        nothing it reacts to. Empty: it decides something (and may speak) in step t. The first
-        segment is *settled* when its state is ``phase``: the agent is already doing it."""
+        nothing it reacts to. Empty: it decides something (and may speak) in step t."""
         ...
 
     def next_event(self, t: int) -> int | None:

@@ -15,7 +15,7 @@ sensor shows nothing it reacts to (the agent's ``news``); callers check the seco
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, replace
 
 from ost_msgs_py.messages import ActionKind
@@ -61,7 +61,26 @@ class Segment:
         return self.kind == "sweep"
 
 
-Plan = tuple[Segment, ...]
+@dataclass(frozen=True)
+class Plan:
+    """An agent's quiet steps, segment after segment. ``settled``: the first segment continues
+    what the agent is already doing — it decides nothing in its first step (no hand-over to
+    another state or task), so the event engine may jump over it without calling ``act``."""
+
+    segments: tuple[Segment, ...] = ()
+    settled: bool = False
+
+    def __iter__(self) -> Iterator[Segment]:
+        return iter(self.segments)
+
+    def __len__(self) -> int:
+        return len(self.segments)
+
+    def __getitem__(self, k: int) -> Segment:
+        return self.segments[k]
+
+
+NO_PLAN = Plan()   # the agent decides (and may speak) in the first step
 
 
 @dataclass(frozen=True)
@@ -96,7 +115,7 @@ def _act(seg: Segment, s: int, pos: Cell, m: int) -> tuple[ActionKind, Cell, int
     return ActionKind.CARRY, step_toward(pos, seg.target), seg.object, moves
 
 
-def unroll(plan: Plan, t: int, position: Cell, limit: int) -> list[PlannedStep]:
+def unroll(plan: Iterable[Segment], t: int, position: Cell, limit: int) -> list[PlannedStep]:
     """The plan step by step from step ``t`` at ``position``: at most ``limit`` steps (an
     open-ended segment is cut there)."""
     out: list[PlannedStep] = []

@@ -60,7 +60,7 @@ class Design:
     seed: int = 1
 
     @classmethod
-    def quick(cls, seed: int = 1) -> "Design":
+    def quick(cls, seed: int = 1) -> Design:
         return cls(agents=(10, 20, 50), objects=(1, 10, 50, 100), sets=2, cis=(1, 10, 50, 100),
                    seed=seed)
 

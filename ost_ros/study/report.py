@@ -118,9 +118,10 @@ def claim_larger_ci(design: Design, c: dict) -> tuple[bool, str]:
             ys = [c.get((n, m, f"CCP CI={ci}")) for ci in design.cis]
             for i in range(len(ys)):
                 for j in range(i + 1, len(ys)):
-                    if ys[i] is not None and ys[j] is not None and ys[i] != ys[j]:
+                    yi, yj = ys[i], ys[j]
+                    if yi is not None and yj is not None and yi != yj:
                         pairs += 1
-                        better += ys[j] < ys[i]
+                        better += yj < yi
             a, b = c.get((n, m, "CCP CI=1")), c.get((n, m, "CCP CI=M"))
             if a and b and m > 1:
                 rel.append((a - b) / a)
@@ -171,7 +172,7 @@ def claim_speedup(design: Design, c: dict) -> tuple[bool, str]:
 def table3_rows(design: Design, c: dict, variant: str) -> list[dict]:
     out = []
     for m in design.objects:
-        row = {"M": m}
+        row: dict[str, float | None] = {"M": m}
         for n in design.agents:
             s = speedup(c, variant, m, n)
             row[f"N={n}"] = None if s is None else round(s, 3)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from multiprocessing import get_context
 
@@ -78,6 +79,7 @@ def run_design(design: Design, workers: int | None = None, progress: bool | None
     cpu = 0.0
     start = time.perf_counter()
     with tqdm(total=len(tasks), desc="runs", unit="task", file=sys.stderr, disable=not show) as bar:
+        results: Iterator[tuple[list[Row], float]]
         if workers == 1:
             results = map(run_task, tasks)
             pool = None

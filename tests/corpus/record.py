@@ -10,7 +10,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import EXPECTED, record  # noqa: E402
+from harness import EXPECTED, record
 
 if __name__ == "__main__":
     with tempfile.TemporaryDirectory() as tmp:

@@ -2,14 +2,32 @@
 import json
 
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from ost_msgs_py import codec
 from ost_msgs_py.codec import MessageError, decode, encode
-from ost_msgs_py.messages import (ALL_MESSAGES, Action, ActionKind, ObjectFound, ObjectInfo,
-                                  Observation, SearchDone, Selection)
-from ost_msgs_py.runtime import (RUNTIME_MESSAGES, Acted, AgentReport, PlanStep, Ready, RunEnd,
-                                 ScheduleEntry, StepMessages, Tick)
+from ost_msgs_py.messages import (
+    ALL_MESSAGES,
+    Action,
+    ActionKind,
+    ObjectFound,
+    ObjectInfo,
+    Observation,
+    SearchDone,
+    Selection,
+)
+from ost_msgs_py.runtime import (
+    RUNTIME_MESSAGES,
+    Acted,
+    AgentReport,
+    PlanStep,
+    Ready,
+    RunEnd,
+    ScheduleEntry,
+    StepMessages,
+    Tick,
+)
 
 ints = st.integers(-5, 10**6)
 cells = st.tuples(ints, ints)
@@ -85,7 +103,7 @@ def test_nested_message_errors_name_the_path():
 def test_bad_enum_and_expected_type():
     d = json.loads(encode(Action(1, 2, ActionKind.WAIT)))
     d["kind"] = "fly"
-    with pytest.raises(MessageError, match="action.kind: 'fly' is not one of wait, move, carry"):
+    with pytest.raises(MessageError, match=r"action\.kind: 'fly' is not one of wait, move, carry"):
         decode(json.dumps(d))
     with pytest.raises(MessageError, match="not accepted here"):
         decode(encode(SearchDone(1, 2)), Action)

@@ -1,6 +1,7 @@
 """The makespan lower bound: hand-computed terms on a tiny scenario, and never above any run's
 makespan (CCP under every trigger, HCP) on random scenarios."""
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy

@@ -1,7 +1,8 @@
 """Algorithm Coordination: hand-computed cases, ties, and the numpy version against a plain
 transcription of the paper's pseudo-code."""
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from ost_ros.coordination import Assignment, CoordinationPolicy, coordinate
 from ost_ros.model import ObjectSpec, manhattan
@@ -89,8 +90,8 @@ def instances(draw):
     oids = draw(st.sets(st.integers(0, 99), min_size=m, max_size=m))
     objs = []
     for oid in oids:
-        l, d = draw(cells), draw(cells)
-        objs.append(ObjectSpec(oid, l, d, draw(st.integers(1, n))))
+        at, d = draw(cells), draw(cells)
+        objs.append(ObjectSpec(oid, at, d, draw(st.integers(1, n))))
     return ids, cost, loc, objs
 
 
@@ -98,10 +99,10 @@ def instances(draw):
 def test_numpy_matches_the_papers_pseudocode(inst):
     ids, cost, loc, objs = inst
     got = coordinate(ids, cost, loc, objs)
-    schedule, c, l, sel = reference(ids, cost, loc, objs)
+    schedule, c, free_loc, sel = reference(ids, cost, loc, objs)
     assert got.schedule == schedule
     assert got.cost.tolist() == c
-    assert [tuple(x) for x in got.loc.tolist()] == l
+    assert [tuple(x) for x in got.loc.tolist()] == free_loc
     assert got.selections.tolist() == sel
 
 

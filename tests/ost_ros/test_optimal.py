@@ -3,13 +3,14 @@ agent groups finds; CCP is never better than it; on a scenario the CCP compariso
 simulated CCP run; Table 1's orders of magnitude."""
 import itertools
 
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.engines import simulate
 from ost_ros.model import Grid, ObjectSpec, manhattan
 from ost_ros.optimal import optimal_schedule, post_search_problem, search_space_order
 from ost_ros.scenario import build_scenario, generate_objects
-from ost_ros.engines import simulate
 
 
 def brute_force(cost, loc, bases, objects):

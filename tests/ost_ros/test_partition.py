@@ -1,6 +1,7 @@
 """Equal partition: the paper's Table 2, the aspect-ratio rule, and exact tiling."""
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from ost_ros.model import Grid
 from ost_ros.partition import TABLE2, choose_partition, split, subareas

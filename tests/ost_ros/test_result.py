@@ -1,9 +1,9 @@
 """RunResult: JSON round trip (result files written by a DDS run are read back by tools)."""
 from ost_ros.bounds import lower_bound
+from ost_ros.engines import simulate
 from ost_ros.model import Grid
 from ost_ros.result import RunResult
 from ost_ros.scenario import generate_scenario
-from ost_ros.engines import simulate
 
 
 def test_round_trip():

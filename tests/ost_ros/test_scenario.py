@@ -3,8 +3,15 @@ import pytest
 import yaml
 
 from ost_ros.model import Grid
-from ost_ros.scenario import (ScenarioError, dump_scenario, generate_objects, generate_scenario,
-                              load_scenario, scenario_from_dict, with_team)
+from ost_ros.scenario import (
+    ScenarioError,
+    dump_scenario,
+    generate_objects,
+    generate_scenario,
+    load_scenario,
+    scenario_from_dict,
+    with_team,
+)
 
 
 def test_generate_is_deterministic_and_sorted_by_location():

@@ -1,5 +1,6 @@
 """The boustrophedon sweep: hand-computed paths and full coverage of any subarea."""
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from ost_ros.model import Subarea, manhattan
 from ost_ros.search import SearchModule, SweepSummary, plan_length, route, sweep_plan, sweep_waypoints

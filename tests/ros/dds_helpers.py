@@ -2,6 +2,7 @@
 an explicit ROS_DOMAIN_ID, and always a teardown (SIGTERM, then SIGKILL) of what was started."""
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import pickle
@@ -57,10 +58,8 @@ def free_domain() -> int:
 def release_domain(domain: int) -> None:
     lock = Path("/tmp/ost_domain_locks") / str(domain)
     (lock / "pid").unlink(missing_ok=True)
-    try:
+    with contextlib.suppress(OSError):
         lock.rmdir()
-    except OSError:
-        pass
 
 
 def ost_up(*args: str, timeout: float = 240) -> subprocess.CompletedProcess:
@@ -80,7 +79,7 @@ def ost_up(*args: str, timeout: float = 240) -> subprocess.CompletedProcess:
         except subprocess.TimeoutExpired:
             os.killpg(p.pid, signal.SIGKILL)
             out, err = p.communicate()
-        raise AssertionError(f"ost_up.sh {' '.join(args)} timed out after {timeout} s:\n{err[-3000:]}")
+        raise AssertionError(f"ost_up.sh {' '.join(args)} timed out after {timeout} s:\n{err[-3000:]}") from None
     return subprocess.CompletedProcess(p.args, p.returncode, out, err)
 
 
@@ -126,7 +125,7 @@ class Processes:
         self.shm_before = set(os.listdir("/dev/shm"))
 
     def start(self, name: str, exe: str, *ros_args: str) -> subprocess.Popen:
-        log = open(self.run_dir / f"{name}.log", "w")
+        log = open(self.run_dir / f"{name}.log", "w")   # noqa: SIM115 - the process writes it
         p = subprocess.Popen([str(BIN / exe), "--ros-args", *ros_args], stdout=log,
                              stderr=subprocess.STDOUT, env=ros_env(self.domain),
                              start_new_session=True)
@@ -157,10 +156,8 @@ class Processes:
                 p.wait()
         for f in set(os.listdir("/dev/shm")) - self.shm_before:
             if f.startswith(("fastrtps_", "sem.fastrtps_", "fast_datasharing")):
-                try:
+                with contextlib.suppress(OSError):
                     os.unlink(f"/dev/shm/{f}")
-                except OSError:
-                    pass
 
 
 def reference(scenario, protocol: str, policy) -> dict:

@@ -8,9 +8,9 @@ import subprocess
 from dds_helpers import kill_mid_run, ost_up, result_json
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.engines import simulate
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
-from ost_ros.engines import simulate
 
 
 def scenario_file(tmp_path, n=4, m=8, seed=1, grid=Grid(30, 12), nmax=3):
@@ -79,7 +79,7 @@ def test_hcp_recovers_from_a_failed_agent_as_in_process(tmp_path):
 
 
 def test_ncp_run_with_a_failed_agent_ends_with_the_reason(tmp_path):
-    scenario, path = scenario_file(tmp_path)
+    _, path = scenario_file(tmp_path)
     run = ost_up("--scenario", str(path), "--json", "--protocol", "ncp", "--kill-agent", "3:10",
                  "--run-dir", str(tmp_path / "run"))
     got = result_json(run.stdout)

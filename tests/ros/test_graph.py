@@ -96,7 +96,7 @@ def test_graph_and_malformed_messages(tmp_path, procs, domain):
     time.sleep(0.2)
     assert json.loads(result.read_text()) == expected
     echoed = ost(domain, "ros", "topic", "echo", "/ost/result", "--once")
-    assert '"makespan": %d' % expected["makespan"] in echoed.stdout
+    assert f'"makespan": {expected["makespan"]}' in echoed.stdout
     for name in ("agent_0", "agent_1"):
         procs.procs[name].wait(20)
         assert procs.procs[name].returncode == 0, procs.log(name)

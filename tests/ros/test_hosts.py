@@ -16,7 +16,8 @@ from ost_ros.scenario import dump_scenario, generate_scenario
 
 ROOT = os.geteuid() == 0
 NFT = shutil.which("nft") is not None
-pytestmark = pytest.mark.skipif(not ROOT, reason="simulated hosts need root (network namespaces)")
+pytestmark = [pytest.mark.root,
+              pytest.mark.skipif(not ROOT, reason="simulated hosts need root (network namespaces)")]
 
 
 def run_on_hosts(tmp_path, *args, protocol="ccp"):

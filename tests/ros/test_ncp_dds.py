@@ -8,11 +8,11 @@ import pytest
 from dds_helpers import ost_up, reference, result_json
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy
-from ost_ros.model import Grid
-from ost_ros.scenario import dump_scenario, generate_scenario
 from ost_ros.engines import finish_result
+from ost_ros.model import Grid
 from ost_ros.protocols import make_agents
 from ost_ros.protocols.ncp import SPEC as ncp
+from ost_ros.scenario import dump_scenario, generate_scenario
 from ost_ros.world import World
 
 
@@ -65,6 +65,7 @@ def test_silent_negotiator_over_dds(tmp_path):
 def test_heterogeneous_team_over_dds(tmp_path):
     # agents of periods 1, 2, 3, 1 (moves every k steps): the DDS run is still the in-process run
     import dataclasses
+
     from ost_ros.scenario import build_scenario
     base = generate_scenario(4, 6, 5, Grid(30, 12), 3)
     agents = [dataclasses.replace(a, period=k) for a, k in zip(base.agents, (1, 2, 3, 1))]

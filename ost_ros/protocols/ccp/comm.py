@@ -25,8 +25,16 @@ from enum import Enum
 
 import numpy as np
 
-from ost_msgs_py.messages import (AgentLost, AgentMessage, ObjectFound, ScheduledObject, ScheduleUpdate,
-                                  SearchDone, Selection, Status)
+from ost_msgs_py.messages import (
+    AgentLost,
+    AgentMessage,
+    ObjectFound,
+    ScheduledObject,
+    ScheduleUpdate,
+    SearchDone,
+    Selection,
+    Status,
+)
 from ost_ros.coordination import Assignment, CoordinationPolicy, coordinate
 from ost_ros.model import Cell, group_period
 from ost_ros.protocols.shared.knowledge import Knowledge
@@ -79,26 +87,11 @@ class CcpComm:
 
     # ------------------------------------------------------------------ incoming
 
-    def receive(self, t: int, messages: Sequence[AgentMessage]) -> None:  # noqa: C901 - one branch per message kind
+    def receive(self, t: int, messages: Sequence[AgentMessage]) -> None:
         """Comm module, step ``t``: take in every message of the step, then coordinate if due."""
         k = self.knowledge
         for msg in messages:
-            if isinstance(msg, ObjectFound):
-                k.note_found(msg.object, msg.t)
-            elif isinstance(msg, SearchDone):
-                if msg.sender in self.team.agent_ids and msg.sender not in self.lost:
-                    self.owed[msg.sender] = max(0, self.owed[msg.sender] - 1)
-                    if self.owed[msg.sender] == 0:
-                        k.searched.add(msg.sender)
-            elif isinstance(msg, Selection):
-                self._check_selection(msg)
-            elif isinstance(msg, Status):
-                if msg.sender in self.team.agent_ids and msg.sender not in self.lost:
-                    self.statuses[msg.sender] = msg
-            elif isinstance(msg, AgentLost):
-                self._lose(msg.agent, msg.t)
-            elif isinstance(msg, ScheduleUpdate):
-                self._adopt(t, msg)
+            self._take(t, msg)
         if self.recovering is not None:
             if self.recovering == t:
                 return            # statuses come next step
@@ -113,6 +106,26 @@ class CcpComm:
         elif self.policy.due(t, len(k.unscheduled), self.team.searched_fraction(t - 1),
                              self.team.searched_fraction(t)):
             self._coordinate(t)
+
+    def _take(self, t: int, msg: AgentMessage) -> None:
+        """One message of step ``t``, by kind."""
+        k = self.knowledge
+        if isinstance(msg, ObjectFound):
+            k.note_found(msg.object, msg.t)
+        elif isinstance(msg, SearchDone):
+            if msg.sender in self.team.agent_ids and msg.sender not in self.lost:
+                self.owed[msg.sender] = max(0, self.owed[msg.sender] - 1)
+                if self.owed[msg.sender] == 0:
+                    k.searched.add(msg.sender)
+        elif isinstance(msg, Selection):
+            self._check_selection(msg)
+        elif isinstance(msg, Status):
+            if msg.sender in self.team.agent_ids and msg.sender not in self.lost:
+                self.statuses[msg.sender] = msg
+        elif isinstance(msg, AgentLost):
+            self._lose(msg.agent, msg.t)
+        elif isinstance(msg, ScheduleUpdate):
+            self._adopt(t, msg)
 
     def next_event(self, t: int) -> int | None:
         """The first step s >= t in which :meth:`receive` acts with no message (None: never)."""
@@ -295,12 +308,12 @@ class CcpComm:
         in step t)."""
         k = self.knowledge
         if isinstance(current, Assignment) and current in k.schedule and current.finish > t:
-            return Status(self.me, t, current.finish, tuple(k.objects[current.object].destination))
+            return Status(self.me, t, current.finish, k.objects[current.object].destination)
         if self.owed[self.me] > 0:
             sw = [s for s in self._sweeps_of(self.me) if s.finish >= t]
             if sw:
-                return Status(self.me, t, sw[-1].finish, tuple(sw[-1].path[-1]))
-        return Status(self.me, t, t + 1, tuple(at))
+                return Status(self.me, t, sw[-1].finish, sw[-1].path[-1])
+        return Status(self.me, t, t + 1, (at[0], at[1]))
 
     def _recover(self, t: int) -> None:
         """Every survivor's Status is in: hand out the orphaned sweeps (each to the survivor free

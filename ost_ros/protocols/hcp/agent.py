@@ -37,20 +37,36 @@ offers is :class:`~ost_ros.protocols.hcp.comm.HcpComm`.
 from __future__ import annotations
 
 import heapq
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from enum import Enum
+from typing import ClassVar
 
-from ost_msgs_py.messages import (FINISH_STATE, SEARCHING_STATE, Action, ActionKind, AgentLost,
-                                  AgentMessage, HelpAccept, HelpOffer, HelpRelease, HelpRequest,
-                                  ObjectInfo, Observation, SearchDone)
+from ost_msgs_py.messages import (
+    FINISH_STATE,
+    SEARCHING_STATE,
+    Action,
+    ActionKind,
+    AgentLost,
+    AgentMessage,
+    HelpAccept,
+    HelpOffer,
+    HelpRelease,
+    HelpRequest,
+    ObjectInfo,
+    Observation,
+    SearchDone,
+)
 from ost_ros.model import Cell, manhattan, moves_between
 from ost_ros.motion import step_toward
 from ost_ros.protocols.base import AgentSummary
 from ost_ros.protocols.hcp.comm import HcpComm, HelpGroup
-from ost_ros.protocols.plans import Plan, Segment
+from ost_ros.protocols.plans import NO_PLAN, Plan, Segment
 from ost_ros.search import SearchModule, route, sweep_waypoints
 from ost_ros.team import TeamInfo
+
+Action3 = tuple[ActionKind, Cell, int]   # what a motion state returns: kind, direction, object
+WAIT: Action3 = (ActionKind.WAIT, (0, 0), -1)
 
 
 class HcpState(str, Enum):
@@ -152,6 +168,7 @@ class HcpAgent:
             return
         if self.state is HcpState.REQUESTING:
             # A higher-priority request is open: give up mine (its offers lapse) and help there.
+            assert self.current is not None
             self._outbox.append(HelpRelease(self.id, self.t, self.current.id))
             self.state = HcpState.FETCHING
         if self.offering is None:
@@ -161,86 +178,111 @@ class HcpAgent:
             self.offering = best
 
     def _motion(self) -> tuple[ActionKind, Cell, int]:
+        # A state either acts (returns the action) or hands over to the next state within the
+        # same step (returns None), so no step is lost to a bookkeeping transition.
         for _ in range(2 * len(HcpState) + 2):
-            s = self.state
-            if s is HcpState.SEARCHING:
-                if (self.own and self.offering is None) or self.sweep_done:
-                    self.state = HcpState.DECISION
-                    continue
-                return ActionKind.MOVE, step_toward(self.position, self.search.next_cell(self.position)), -1
-            if s is HcpState.DECISION:
-                if self.offering is not None:
-                    return ActionKind.WAIT, (0, 0), -1
-                while self.own and self.comm.objects[self.own[0]].required > len(self.comm.alive):
-                    heapq.heappop(self.own)           # too few robots survive to move it
-                if self.own:
-                    self.current = self.comm.objects[heapq.heappop(self.own)]
-                    self.helping = False
-                    self.state = HcpState.FETCHING
-                    continue
-                if not self.sweep_done:
-                    self.state = HcpState.RESUMING
-                    continue
-                if not self.part_done_sent:
-                    self.part_done_sent = True
-                    self._outbox.append(SearchDone(self.id, self.t))
-                    self.comm.done_parts.add(self.id)   # my own part needs no round trip
-                if self.comm.closed:
-                    self.state = HcpState.RETURNING
-                    continue
-                return ActionKind.WAIT, (0, 0), -1
-            if s is HcpState.RESUMING:
-                if self.own and self.offering is None:
-                    self.state = HcpState.DECISION
-                    continue
-                target = self.search.path[self.search.index]
-                if self.position == target:
-                    self.state = HcpState.SEARCHING
-                    self._sense(self._obs)   # back on the sweep: sensing (and its end) resume
-                    continue
-                return ActionKind.MOVE, step_toward(self.position, target), -1
-            if s is HcpState.FETCHING:
-                target = self.current.location
-                if self.position != target:
-                    return ActionKind.MOVE, step_toward(self.position, target), -1
-                if self.current.id in self.unsure:   # inherited: is it still here?
-                    self.unsure.discard(self.current.id)
-                    if all(o.id != self.current.id for o in self._obs.sensed):
-                        self.current = None          # delivered before its owner died
-                        self.state = HcpState.DECISION
-                        continue
-                if self.offering is not None:
-                    return ActionKind.WAIT, (0, 0), -1
-                if self.current.required == 1:
-                    self.state = HcpState.MOVING
-                    continue
-                self._outbox.append(HelpRequest(self.id, self.t, self.current))
-                self.state = HcpState.REQUESTING
-                return ActionKind.WAIT, (0, 0), -1
-            if s is HcpState.REQUESTING:
-                return ActionKind.WAIT, (0, 0), -1
-            if s is HcpState.HELPING:
-                if self.position == self.current.location:
-                    self.state = HcpState.WAITING
-                    continue
-                return ActionKind.MOVE, step_toward(self.position, self.current.location), -1
-            if s is HcpState.WAITING or s is HcpState.MOVING:
-                obj = self.current
-                if self.position == obj.destination:   # delivered on arrival
-                    self.current = None
-                    self.helping = False
-                    self.state = HcpState.DECISION
-                    continue
-                if self.position != obj.location:
-                    self.state = HcpState.MOVING
-                return ActionKind.CARRY, step_toward(self.position, obj.destination), obj.id
-            if s is HcpState.RETURNING:
-                if self.position == self.base:
-                    self.state = HcpState.FINISH
-                    continue
-                return ActionKind.MOVE, step_toward(self.position, self.base), -1
-            return ActionKind.WAIT, (0, 0), -1   # FINISH
+            action = self._STEP[self.state](self)
+            if action is not None:
+                return action
         raise RuntimeError(f"agent {self.id}: motion FSA did not settle in state {self.state}")
+
+    def _searching(self) -> Action3 | None:
+        if (self.own and self.offering is None) or self.sweep_done:
+            self.state = HcpState.DECISION
+            return None
+        return ActionKind.MOVE, step_toward(self.position, self.search.next_cell(self.position)), -1
+
+    def _deciding(self) -> Action3 | None:
+        if self.offering is not None:
+            return WAIT
+        while self.own and self.comm.objects[self.own[0]].required > len(self.comm.alive):
+            heapq.heappop(self.own)           # too few robots survive to move it
+        if self.own:
+            self.current = self.comm.objects[heapq.heappop(self.own)]
+            self.helping = False
+            self.state = HcpState.FETCHING
+            return None
+        if not self.sweep_done:
+            self.state = HcpState.RESUMING
+            return None
+        if not self.part_done_sent:
+            self.part_done_sent = True
+            self._outbox.append(SearchDone(self.id, self.t))
+            self.comm.done_parts.add(self.id)   # my own part needs no round trip
+        if self.comm.closed:
+            self.state = HcpState.RETURNING
+            return None
+        return WAIT
+
+    def _resuming(self) -> Action3 | None:
+        if self.own and self.offering is None:
+            self.state = HcpState.DECISION
+            return None
+        target = self.search.path[self.search.index]
+        if self.position == target:
+            self.state = HcpState.SEARCHING
+            assert self._obs is not None
+            self._sense(self._obs)   # back on the sweep: sensing (and its end) resume
+            return None
+        return ActionKind.MOVE, step_toward(self.position, target), -1
+
+    def _fetching(self) -> Action3 | None:
+        assert self.current is not None and self._obs is not None
+        target = self.current.location
+        if self.position != target:
+            return ActionKind.MOVE, step_toward(self.position, target), -1
+        if self.current.id in self.unsure:   # inherited: is it still here?
+            self.unsure.discard(self.current.id)
+            if all(o.id != self.current.id for o in self._obs.sensed):
+                self.current = None          # delivered before its owner died
+                self.state = HcpState.DECISION
+                return None
+        if self.offering is not None:
+            return WAIT
+        if self.current.required == 1:
+            self.state = HcpState.MOVING
+            return None
+        self._outbox.append(HelpRequest(self.id, self.t, self.current))
+        self.state = HcpState.REQUESTING
+        return WAIT
+
+    def _requesting(self) -> Action3 | None:
+        return WAIT
+
+    def _helping(self) -> Action3 | None:
+        assert self.current is not None
+        if self.position == self.current.location:
+            self.state = HcpState.WAITING
+            return None
+        return ActionKind.MOVE, step_toward(self.position, self.current.location), -1
+
+    def _carrying(self) -> Action3 | None:
+        obj = self.current
+        assert obj is not None
+        if self.position == obj.destination:   # delivered on arrival
+            self.current = None
+            self.helping = False
+            self.state = HcpState.DECISION
+            return None
+        if self.position != obj.location:
+            self.state = HcpState.MOVING
+        return ActionKind.CARRY, step_toward(self.position, obj.destination), obj.id
+
+    def _returning(self) -> Action3 | None:
+        if self.position == self.base:
+            self.state = HcpState.FINISH
+            return None
+        return ActionKind.MOVE, step_toward(self.position, self.base), -1
+
+    def _finished(self) -> Action3 | None:
+        return WAIT
+
+    _STEP: ClassVar[dict[HcpState, Callable[[HcpAgent], Action3 | None]]] = {
+        HcpState.SEARCHING: _searching, HcpState.DECISION: _deciding, HcpState.RESUMING: _resuming,
+        HcpState.FETCHING: _fetching, HcpState.REQUESTING: _requesting, HcpState.HELPING: _helping,
+        HcpState.WAITING: _carrying, HcpState.MOVING: _carrying, HcpState.RETURNING: _returning,
+        HcpState.FINISH: _finished,
+    }
 
     # ------------------------------------------------------------------ step, part 2: talk
 
@@ -291,7 +333,7 @@ class HcpAgent:
             return
         if self.comm.requester.get(g.object) == self.id and not self.helping:
             if self.state is HcpState.MOVING:   # carried part of the way: it lies here now
-                self.current = replace(self.current, location=tuple(self.position))
+                self.current = replace(self.current, location=(self.position[0], self.position[1]))
                 self.comm.objects[g.object] = self.current
             self.state = HcpState.FETCHING
             return
@@ -328,57 +370,73 @@ class HcpAgent:
         hold, to carry alone, to sweep on, to finish). Sweeps run to their end: the caller stops
         them where an own object comes into sensor range (``news``)."""
         if self._outbox or self._offer_target() is not None:
-            return ()
-        return tuple(self._segments(self.state, position))
+            return NO_PLAN
+        segments = tuple(self._segments(self.state, position))
+        # every first segment continues the current state (hand-overs only come after it)
+        return Plan(segments, settled=bool(segments))
 
-    def _segments(self, s: HcpState, pos: Cell) -> list[Segment]:  # noqa: C901 - one branch per state, as _motion
-        H = HcpState
-        if s is H.SEARCHING:
-            if (self.own and self.offering is None) or self.sweep_done:
-                return []
-            return self._sweep(pos)
-        if s is H.DECISION:
-            if self.offering is None and (self.own or not self.sweep_done or not self.part_done_sent
-                                          or self.comm.closed):
-                return []
-            return [Segment("wait", s.value)]
-        if s is H.RESUMING:
-            target = self.search.path[self.search.index]
-            if (self.own and self.offering is None) or pos == target:
-                return []
-            return [self._walk(s, pos, target)] + self._sweep(target, H.SEARCHING)
-        if s is H.FETCHING:
-            assert self.current is not None
-            target = self.current.location
-            if pos == target:
-                return [Segment("wait", s.value)] if self.offering is not None else []
-            out = [self._walk(s, pos, target)]
-            if self.current.id in self.unsure:
-                return out                          # is it still there? looked at on arrival
-            if self.offering is not None:
-                return out + [Segment("wait", s.value)]
-            if self.current.required == 1 and target != self.current.destination:
-                return out + [self._carry(H.MOVING, target)]   # alone: carried at once
-            return out
-        if s is H.REQUESTING:
-            return [Segment("wait", s.value)]
-        if s is H.HELPING:
-            assert self.current is not None
-            target = self.current.location
-            if pos == target:
-                return []
-            return [self._walk(s, pos, target), self._hold()]
-        if s is H.WAITING:
-            assert self.current is not None
-            return [self._hold()] if pos == self.current.location else []
-        if s is H.MOVING:
-            assert self.current is not None
-            return [self._carry(s, pos)] if pos != self.current.destination else []
-        if s is H.RETURNING:
-            if pos == self.base:
-                return []
-            return [self._walk(s, pos, self.base), Segment("wait", H.FINISH.value)]
-        return [Segment("wait", s.value)]   # FINISH
+    def _segments(self, s: HcpState, pos: Cell) -> list[Segment]:
+        return self._PLAN[s](self, pos)
+
+    def _plan_searching(self, pos: Cell) -> list[Segment]:
+        if (self.own and self.offering is None) or self.sweep_done:
+            return []
+        return self._sweep(pos)
+
+    def _plan_deciding(self, pos: Cell) -> list[Segment]:
+        if self.offering is None and (self.own or not self.sweep_done or not self.part_done_sent
+                                      or self.comm.closed):
+            return []
+        return [Segment("wait", HcpState.DECISION.value)]
+
+    def _plan_resuming(self, pos: Cell) -> list[Segment]:
+        target = self.search.path[self.search.index]
+        if (self.own and self.offering is None) or pos == target:
+            return []
+        return [self._walk(HcpState.RESUMING, pos, target)] + self._sweep(target, HcpState.SEARCHING)
+
+    def _plan_fetching(self, pos: Cell) -> list[Segment]:
+        assert self.current is not None
+        target, here = self.current.location, HcpState.FETCHING
+        if pos == target:
+            return [Segment("wait", here.value)] if self.offering is not None else []
+        out = [self._walk(here, pos, target)]
+        if self.current.id in self.unsure:
+            return out                          # is it still there? looked at on arrival
+        if self.offering is not None:
+            return out + [Segment("wait", here.value)]
+        if self.current.required == 1 and target != self.current.destination:
+            return out + [self._carry(HcpState.MOVING, target)]   # alone: carried at once
+        return out
+
+    def _plan_waiting(self, pos: Cell) -> list[Segment]:
+        assert self.current is not None
+        return [self._hold()] if pos == self.current.location else []
+
+    def _plan_helping(self, pos: Cell) -> list[Segment]:
+        assert self.current is not None
+        target = self.current.location
+        return [] if pos == target else [self._walk(HcpState.HELPING, pos, target), self._hold()]
+
+    def _plan_moving(self, pos: Cell) -> list[Segment]:
+        assert self.current is not None
+        return [self._carry(HcpState.MOVING, pos)] if pos != self.current.destination else []
+
+    def _plan_returning(self, pos: Cell) -> list[Segment]:
+        if pos == self.base:
+            return []
+        return [self._walk(HcpState.RETURNING, pos, self.base), Segment("wait", HcpState.FINISH.value)]
+
+    def _plan_standing(self, pos: Cell) -> list[Segment]:   # REQUESTING, FINISH: wait for news
+        return [Segment("wait", self.state.value)]
+
+    _PLAN: ClassVar[dict[HcpState, Callable[[HcpAgent, Cell], list[Segment]]]] = {
+        HcpState.SEARCHING: _plan_searching, HcpState.DECISION: _plan_deciding,
+        HcpState.RESUMING: _plan_resuming, HcpState.FETCHING: _plan_fetching,
+        HcpState.REQUESTING: _plan_standing, HcpState.HELPING: _plan_helping,
+        HcpState.WAITING: _plan_waiting, HcpState.MOVING: _plan_moving,
+        HcpState.RETURNING: _plan_returning, HcpState.FINISH: _plan_standing,
+    }
 
     def _sweep(self, pos: Cell, state: HcpState = HcpState.SEARCHING) -> list[Segment]:
         """On along the sweep from ``pos`` (its current cell) to the last cell, where it decides."""

@@ -7,8 +7,16 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from ost_msgs_py.messages import (AgentLost, AgentMessage, HelpAccept, HelpOffer, HelpRelease,
-                                  HelpRequest, ObjectInfo, SearchDone)
+from ost_msgs_py.messages import (
+    AgentLost,
+    AgentMessage,
+    HelpAccept,
+    HelpOffer,
+    HelpRelease,
+    HelpRequest,
+    ObjectInfo,
+    SearchDone,
+)
 from ost_ros.team import TeamInfo
 
 
@@ -64,9 +72,9 @@ class HcpComm:
         self._ids = self._ids - {agent}
         for obj in [o for o, r in self.open.items() if r == agent]:
             self._close(obj)                       # its request: nobody asks for it any more
-        obj = self.offered_to.pop(agent, None)      # its standing offer lapses
-        if obj is not None:
-            self.offers.get(obj, {}).pop(agent, None)
+        offered = self.offered_to.pop(agent, None)  # its standing offer lapses
+        if offered is not None:
+            self.offers.get(offered, {}).pop(agent, None)
         latest: dict[int, HelpGroup] = {}
         for g in self.groups:
             latest[g.object] = g
@@ -91,31 +99,17 @@ class HcpComm:
         by_kind: dict[type, list[Any]] = {}
         for msg in messages:
             by_kind.setdefault(type(msg), []).append(msg)
-        ids = self._ids
-        for msg in by_kind.get(HelpRelease, ()):
-            if self.open.get(msg.object) == msg.sender:
-                self._close(msg.object)
-        for msg in _ordered(by_kind.get(HelpRequest, ()), lambda m: m.object.id):
-            if msg.sender in ids and msg.object.id not in self.open and msg.object.required > 1:
-                self.open[msg.object.id] = msg.sender
-                self.requester[msg.object.id] = msg.sender
-                self.objects[msg.object.id] = msg.object
-                self.offers[msg.object.id] = {}
-        for msg in _ordered(by_kind.get(HelpOffer, ()), lambda m: (m.object, m.sender)):
-            if (msg.object in self.open and msg.sender in ids and msg.sender not in self.offered_to
-                    and self.open[msg.object] != msg.sender):
-                self.offers[msg.object][msg.sender] = msg.arrival
-                self.offered_to[msg.sender] = msg.object
-        for msg in _ordered(by_kind.get(AgentLost, ()), lambda m: m.agent):
+        self._take_requests(by_kind)
+        for msg in _ordered(by_kind.get(AgentLost, []), lambda m: m.agent):
             for o in msg.dropped:   # where a dead robot's load lies (sensing gives its origin)
                 self.fallen[o.id] = o
             self._lose(msg.agent, msg.t)
         for msg in by_kind.get(HelpAccept, ()):
             self._check_accept(msg)
         for msg in by_kind.get(SearchDone, ()):
-            if msg.sender in ids:
+            if msg.sender in self._ids:
                 self.done_parts.add(msg.sender)
-        formed = []
+        formed: list[HelpGroup] = []
         if HelpOffer not in by_kind:   # staffing changes only with new offers
             return formed
         for obj in sorted(self.open):
@@ -128,6 +122,24 @@ class HcpComm:
                 formed.append(group)
                 self._close(obj)
         return formed
+
+    def _take_requests(self, by_kind: dict[type, list[Any]]) -> None:
+        """Withdrawn requests, new requests, new standing offers — in a fixed order."""
+        ids = self._ids
+        for msg in by_kind.get(HelpRelease, ()):
+            if self.open.get(msg.object) == msg.sender:
+                self._close(msg.object)
+        for msg in _ordered(by_kind.get(HelpRequest, []), lambda m: m.object.id):
+            if msg.sender in ids and msg.object.id not in self.open and msg.object.required > 1:
+                self.open[msg.object.id] = msg.sender
+                self.requester[msg.object.id] = msg.sender
+                self.objects[msg.object.id] = msg.object
+                self.offers[msg.object.id] = {}
+        for msg in _ordered(by_kind.get(HelpOffer, []), lambda m: (m.object, m.sender)):
+            if (msg.object in self.open and msg.sender in ids and msg.sender not in self.offered_to
+                    and self.open[msg.object] != msg.sender):
+                self.offers[msg.object][msg.sender] = msg.arrival
+                self.offered_to[msg.sender] = msg.object
 
     def _check_accept(self, msg: HelpAccept) -> None:
         for g in reversed(self.groups):

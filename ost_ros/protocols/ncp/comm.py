@@ -20,8 +20,7 @@ from enum import Enum
 
 import numpy as np
 
-from ost_msgs_py.messages import (AgentMessage, NegotiationOffer, ObjectFound, SearchDone, Selection,
-                                  Status)
+from ost_msgs_py.messages import AgentMessage, NegotiationOffer, ObjectFound, SearchDone, Selection, Status
 from ost_ros.coordination import Assignment, CoordinationPolicy, order_groups
 from ost_ros.model import Cell, arrival_np
 from ost_ros.negotiation.slots import NegotiationSettings, SlotNegotiation

@@ -25,13 +25,23 @@ from collections.abc import Mapping, Sequence
 from enum import Enum
 from typing import Protocol
 
-from ost_msgs_py.messages import (FINISH_STATE, SEARCHING_STATE, Action, ActionKind, AgentMessage,
-                                  ObjectFound, ObjectInfo, Observation, SearchDone, Status)
+from ost_msgs_py.messages import (
+    FINISH_STATE,
+    SEARCHING_STATE,
+    Action,
+    ActionKind,
+    AgentMessage,
+    ObjectFound,
+    ObjectInfo,
+    Observation,
+    SearchDone,
+    Status,
+)
 from ost_ros.coordination import Assignment
 from ost_ros.model import Cell, arrival, can_move, group_period, manhattan, moves_between
 from ost_ros.motion import step_toward
 from ost_ros.protocols.base import AgentSummary
-from ost_ros.protocols.plans import Plan, Segment
+from ost_ros.protocols.plans import NO_PLAN, Plan, Segment
 from ost_ros.protocols.shared.knowledge import Knowledge
 from ost_ros.protocols.shared.recovery import Sweep
 from ost_ros.search import SearchModule, SearchState
@@ -154,7 +164,9 @@ class ScheduleAgent:
         self._read_schedule()
         if self.tasks and isinstance(self.tasks[0], Sweep):
             # a failed team mate's unsearched cells: sweep them (sensing from here on)
-            self.search = SearchModule(list(self.tasks.popleft().path))
+            sweep = self.tasks.popleft()
+            assert isinstance(sweep, Sweep)
+            self.search = SearchModule(list(sweep.path))
             self.state = GlobalState.SEARCHING
             self._search(obs)
         elif self.tasks:
@@ -212,7 +224,7 @@ class ScheduleAgent:
         """The steps it takes from ``t`` without a word: its schedule decides them, up to the step
         in which its comm module acts on its own (a trigger, the end of a negotiation round)."""
         if self._outbox or self.comm.pending() or self.comm.recovering is not None:
-            return ()
+            return NO_PLAN
         last = self.comm.next_event(t)
         return _Planner(self, t, position, None if last is None else last + 1).run()
 
@@ -272,6 +284,7 @@ class _Planner:
         self.path: Sequence[Cell] = agent.search.path
         self.index = agent.search.index
         self.out: list[Segment] = []
+        self.handed_over = False   # a state or task changed before the first segment began
 
     def add(self, kind: str, steps: int | None, **kw) -> bool:
         """Append a segment from step ``s`` (cut at the plan's end); False once the plan is over."""
@@ -280,6 +293,9 @@ class _Planner:
             steps, cut = self.end - self.s, True
         if steps is not None and steps <= 0:
             return not cut
+        if not self.out and (self.state is not self.a.state or self.current is not self.a.current
+                             or len(self.tasks) != len(self.a.tasks) + len(self.a._unread())):
+            self.handed_over = True
         self.out.append(Segment(kind, self.state.value, steps, **kw))
         if steps is None:
             return False
@@ -290,15 +306,17 @@ class _Planner:
         go = True
         while go and (self.end is None or self.s < self.end):
             go = self.step()
-        return tuple(self.out)
+        return Plan(tuple(self.out), settled=bool(self.out) and not self.handed_over)
 
-    def step(self) -> bool:   # noqa: C901 - one branch per global state, as _motion
+    def step(self) -> bool:
         a, G = self.a, GlobalState
         if self.state is G.SEARCHING:
             return self.sweep()
         if self.state is G.DECISION:
             if self.tasks and isinstance(self.tasks[0], Sweep):
-                self.path, self.index = self.tasks.pop(0).path, 0
+                sweep = self.tasks.pop(0)
+                assert isinstance(sweep, Sweep)
+                self.path, self.index = sweep.path, 0
                 self.state = G.SEARCHING
             elif self.tasks:
                 task = self.tasks.pop(0)

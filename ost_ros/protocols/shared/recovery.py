@@ -35,7 +35,7 @@ class Sweep:
 
     @classmethod
     def take_over(cls, agent: int, at: Cell, free: int, cells: tuple[Cell, ...],
-                  period: int = 1) -> "Sweep":
+                  period: int = 1) -> Sweep:
         """``agent``, free at step ``free`` at cell ``at``, walks to ``cells[0]`` and sweeps on."""
         lead = route([at, cells[0]])
         path = tuple(lead) + tuple(cells[1:])

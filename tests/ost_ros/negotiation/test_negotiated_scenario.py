@@ -8,13 +8,18 @@ import numpy as np
 import pytest
 
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.engines import simulate
 from ost_ros.model import Grid
 from ost_ros.negotiation.partition import negotiated_scenario
 from ost_ros.negotiation.proposals import AreaSearch
-from ost_ros.scenario import (ScenarioError, build_scenario, dump_scenario, generate_scenario,
-                              scenario_from_dict)
+from ost_ros.scenario import (
+    ScenarioError,
+    build_scenario,
+    dump_scenario,
+    generate_scenario,
+    scenario_from_dict,
+)
 from ost_ros.search import agent_plan, route
-from ost_ros.engines import simulate
 
 CHEAP = AreaSearch(population=8, generations=3)   # a cheaper proposal search for tests
 

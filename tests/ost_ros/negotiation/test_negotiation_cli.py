@@ -74,8 +74,8 @@ def test_run_area_from_file_with_nfz(tmp_path):
     p = ost("run", "--file", str(f), "--json")
     assert p.returncode == 0, p.stderr
     out = json.loads(p.stdout)
-    from shapely.geometry import Polygon, box
     import numpy as np
+    from shapely.geometry import Polygon, box
     s2 = Polygon(np.asarray(out["shares"][1]).reshape(-1, 2))
     assert s2.intersection(box(0.4, 0.4, 0.6, 0.6)).area <= 1e-9
     assert out["metrics"]["covered"] > 0.9

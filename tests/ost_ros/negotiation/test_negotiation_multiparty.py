@@ -1,14 +1,15 @@
 """Multi-party strategies: exit option, private constraints, determinism, time-out, errors."""
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ost_ros.negotiation import AgentSpec, AreaTask, TargetTask, make_task_polygon, negotiate
 from ost_ros.negotiation.errors import NegotiationError
 from ost_ros.negotiation.proposals import AreaSearch
-from ost_ros.negotiation.rewards import AreaReward, TargetReward
-from ost_ros.negotiation.scenarios import fig4, nfz_run
 from ost_ros.negotiation.protocol import rubinstein_share
+from ost_ros.negotiation.rewards import TargetReward
+from ost_ros.negotiation.scenarios import fig4, nfz_run
 
 FAST = AreaSearch(population=8, generations=2)
 
@@ -51,7 +52,7 @@ def test_area_exit_never_leaves_an_intersection(robots, seed, strategy):
     assert res.status == "agreed"
     events = replay_exits(task, res)
     assert events, "someone must have used the exit option"
-    for agent, share, others in events:
+    for _agent, share, others in events:
         assert len(others) == robots - 1, "nobody leaves before every partner has made an offer"
         for other in others.values():
             assert share.intersection(other).area <= 1e-9

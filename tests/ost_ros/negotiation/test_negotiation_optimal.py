@@ -1,11 +1,16 @@
 """Exact target allocation against brute force on tiny cases."""
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ost_ros.negotiation.errors import NegotiationError
-from ost_ros.negotiation.optimal import (brute_force_allocation, optimal_allocation, route_length,
-                                         subset_route_costs)
+from ost_ros.negotiation.optimal import (
+    brute_force_allocation,
+    optimal_allocation,
+    route_length,
+    subset_route_costs,
+)
 
 
 def test_route_length_collinear():

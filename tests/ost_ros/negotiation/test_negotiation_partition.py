@@ -11,16 +11,28 @@ from pathlib import Path
 import numpy as np
 import pytest
 import shapely
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ost_ros.cli import main
 from ost_ros.model import Subarea, arrival
 from ost_ros.negotiation import multiparty
 from ost_ros.negotiation.agents import AreaNegotiator
 from ost_ros.negotiation.errors import NegotiationError
-from ost_ros.negotiation.partition import (SearchReward, SearchRobot, SearchTeam, apply_flags, forbidden_polygon,
-                                           negotiate_partition, patience_discounts, region_sweep, resolve,
-                                           search_time, sweep_length, sweep_path)
+from ost_ros.negotiation.partition import (
+    SearchReward,
+    SearchRobot,
+    SearchTeam,
+    apply_flags,
+    forbidden_polygon,
+    negotiate_partition,
+    patience_discounts,
+    region_sweep,
+    resolve,
+    search_time,
+    sweep_length,
+    sweep_path,
+)
 from ost_ros.negotiation.proposals import AreaSearch
 from ost_ros.search import plan_length, sweep_waypoints
 

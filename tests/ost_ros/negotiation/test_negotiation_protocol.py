@@ -2,12 +2,19 @@
 import math
 
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ost_ros.negotiation.errors import NegotiationError
-from ost_ros.negotiation.protocol import (ProtocolState, alternating_offers_1d, claim_size,
-                                          estimate_discount, predicted_share, rubinstein_share,
-                                          validate_delta)
+from ost_ros.negotiation.protocol import (
+    ProtocolState,
+    alternating_offers_1d,
+    claim_size,
+    estimate_discount,
+    predicted_share,
+    rubinstein_share,
+    validate_delta,
+)
 
 
 def test_rubinstein_share_hand_value():
@@ -43,7 +50,7 @@ def test_estimate_discount_from_last_offers():
 
 @pytest.mark.parametrize("bad", [0.0, 1.0, -0.3, 1.5, float("nan"), "x", None])
 def test_delta_outside_unit_interval_is_refused(bad):
-    with pytest.raises(NegotiationError, match="discount factor|δ"):
+    with pytest.raises(NegotiationError, match=r"discount factor|δ"):
         validate_delta(bad)
     with pytest.raises(ValueError):  # the library error is a ValueError
         ProtocolState(bad)

@@ -1,17 +1,18 @@
 """The event-driven engine gives exactly the step simulator's run: every found time, the schedule,
 every object's group/start/delivery, every agent's cost/idle/carry/search/travel, the makespan,
 message and coordination counts — for CCP under every trigger kind, and for HCP."""
-from hypothesis import given, settings, strategies as st
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ost_ros.coordination import CoordinationPolicy
-from ost_ros.engines import simulate_events
-from ost_ros.sensing import first_sensing
+from ost_ros.engines import choose_engine, simulate, simulate_events
+from ost_ros.engines.event import run_events
 from ost_ros.model import Grid
 from ost_ros.partition import choose_partition
+from ost_ros.protocols import make_agents
 from ost_ros.scenario import build_scenario, generate_objects, generate_scenario
-from ost_ros.engines import choose_engine, simulate
-
-import numpy as np
+from ost_ros.sensing import first_sensing
 from strategies import policies, scenarios
 
 
@@ -79,3 +80,23 @@ def test_engine_choice():
     small = build_scenario(Grid(10, 3), [], n_agents=1)
     assert choose_engine(small) == "step" and choose_engine(generate_scenario(10, 20, 1)) == "event"
     assert choose_engine(small, "event") == "event"
+
+
+def _generic(scenario, protocol, policy):
+    """The event engine on the agents' own plans, for any protocol (CCP and NCP normally run on
+    the analytic engine; this checks their ``plan``, which the DDS runtime relies on too)."""
+    return run_events(scenario, make_agents(scenario, protocol, policy))
+
+
+@settings(max_examples=150)
+@given(scenarios(width=(4, 40), height=(3, 16), agents=(1, 8), objects=(0, 14)), policies,
+       st.sampled_from(["ccp", "ncp"]))
+def test_generic_event_engine_equals_step_engine_for_every_protocol(scenario, policy, protocol):
+    same_run(simulate(scenario, protocol, policy), _generic(scenario, protocol, policy))
+
+
+@settings(max_examples=25)
+@given(crowded(), policies)
+def test_generic_engine_on_crowded_scenarios(scenario, policy):
+    for protocol in ("ccp", "ncp"):
+        same_run(simulate(scenario, protocol, policy), _generic(scenario, protocol, policy))

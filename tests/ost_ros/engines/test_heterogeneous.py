@@ -4,15 +4,21 @@ engine is the same run as the step engine; HCP refuses such a team with a clear 
 import dataclasses
 
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy, coordinate
-from ost_ros.engines import simulate_events
+from ost_ros.engines import simulate, simulate_events
 from ost_ros.model import AgentSpec, Grid, ObjectSpec, arrival, can_move, group_period
-from ost_ros.scenario import (ScenarioError, build_scenario, dump_scenario, generate_objects,
-                              scenario_from_dict, scenario_to_dict)
-from ost_ros.engines import simulate
+from ost_ros.scenario import (
+    ScenarioError,
+    build_scenario,
+    dump_scenario,
+    generate_objects,
+    scenario_from_dict,
+    scenario_to_dict,
+)
 from strategies import policies, scenarios
 
 

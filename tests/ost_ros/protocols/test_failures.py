@@ -8,12 +8,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ost_ros.coordination import CoordinationPolicy
-from ost_ros.model import Grid, ObjectSpec
-from ost_ros.model import moves_between
+from ost_ros.engines import simulate
+from ost_ros.model import Grid, ObjectSpec, moves_between
 from ost_ros.protocols.shared.recovery import Sweep, drop_cell, remaining_sweep
 from ost_ros.scenario import build_scenario
 from ost_ros.search import route
-from ost_ros.engines import simulate
 from strategies import policies, scenarios
 
 

@@ -4,9 +4,9 @@ deadlock, planned = executed)."""
 from hypothesis import given, settings
 
 from ost_ros.coordination import Assignment, CoordinationPolicy
+from ost_ros.engines import simulate
 from ost_ros.model import Grid, ObjectSpec, manhattan
 from ost_ros.scenario import build_scenario, generate_objects
-from ost_ros.engines import simulate
 from strategies import policies, scenarios
 
 

@@ -6,52 +6,14 @@ import dataclasses
 import pytest
 
 from agent_node.runtime import AgentRuntime, ProtocolViolation
-from ost_msgs_py import codec
+from lockstep import run, wire
 from ost_msgs_py.runtime import Acted, AgentReport, Resend, RunEnd, StepMessages
 from ost_ros.coordination import CoordinationPolicy
-from ost_ros.model import Grid
-from ost_ros.scenario import generate_scenario
 from ost_ros.engines import simulate
+from ost_ros.model import Grid
 from ost_ros.protocols import make_agents, names
+from ost_ros.scenario import generate_scenario
 from world_node.runtime import WorldRuntime
-
-
-def wire(msg):
-    return codec.decode(codec.encode(msg))
-
-
-def run(scenario, protocol, policy, lookahead, skipping, kill=None):
-    """``kill`` = {agent: step}: the agent's process is gone from the first tick at or after
-    that step (with skipping, the world may be past it: then it fails later, as over DDS)."""
-    ids = tuple(a.id for a in scenario.agents)
-    rts = {a.id: AgentRuntime(a, ids, lookahead)
-           for a in make_agents(scenario, protocol, policy)}
-    world = WorldRuntime(scenario, skipping=skipping, protocol=protocol)
-    nxt = world.start()
-    kill = dict(kill or {})
-    while True:
-        for a, t in list(kill.items()):
-            if not isinstance(nxt, RunEnd) and world.world.t >= t:
-                del rts[a], kill[a]
-                assert world.fail(a) is None   # the survivors still have to act
-        for r in rts.values():
-            if isinstance(nxt, RunEnd):
-                r.accept_end(wire(nxt))
-            else:
-                r.accept_tick(wire(next(k for k in nxt if k.observation.agent == r.me)))
-        out = [m for r in rts.values() for m in r.progress()]
-        for b in (m for m in out if isinstance(m, StepMessages)):
-            for r in rts.values():
-                r.accept_batch(wire(b))
-        for m in out:
-            if isinstance(m, Acted):
-                world.accept_acted(wire(m))
-            elif isinstance(m, AgentReport):
-                world.accept_report(wire(m))
-        if isinstance(nxt, RunEnd):
-            return world.result(), world
-        nxt = world.advance()
-
 
 CASES = [(4, 6, 1, 30, 12, 1), (4, 6, 1, 30, 12, 6), (10, 15, 2, 40, 20, 1), (6, 12, 5, 36, 18, 3)]
 
@@ -222,7 +184,7 @@ def test_messages_of_another_run_are_dropped():
 def test_failed_agents_equal_simulate_with_the_same_failures(kill, skipping, protocol):
     scenario = generate_scenario(6, 10, 3, Grid(36, 18), 3)
     policy = CoordinationPolicy(ci=2)
-    got, world = run(scenario, protocol, policy, 64 if skipping else 0, skipping, kill)
+    got, _ = run(scenario, protocol, policy, 64 if skipping else 0, skipping, kill)
     failures = {f["agent"]: f["step"] for f in got.failures}
     assert set(failures) == set(kill) and all(failures[a] >= kill[a] for a in kill)
     if not skipping:

@@ -3,13 +3,14 @@ of the design — never a deadlock, every object delivered once by exactly n_i a
 action, every agent agrees on every staffing decision, the result independent of message order."""
 import random
 
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from ost_ros.model import Grid, ObjectSpec, manhattan
-from ost_ros.scenario import build_scenario, generate_objects
-from ost_ros.engines import finish_result, simulate
-from ost_ros.protocols import make_agents
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.engines import finish_result, simulate
+from ost_ros.model import Grid, ObjectSpec, manhattan
+from ost_ros.protocols import make_agents
+from ost_ros.scenario import build_scenario, generate_objects
 from ost_ros.world import World
 from strategies import scenarios
 

@@ -8,14 +8,12 @@ from hypothesis import given, settings
 
 from ost_msgs_py.messages import NegotiationOffer
 from ost_ros.coordination import Assignment, CoordinationPolicy, order_groups
-from ost_ros.engines import simulate_events
+from ost_ros.engines import finish_result, simulate, simulate_events
 from ost_ros.model import Grid, ObjectSpec, manhattan
-from ost_ros.negotiation.slots import (NegotiationSettings, SlotNegotiation, claim_cap, decide,
-                                       protected)
+from ost_ros.negotiation.slots import NegotiationSettings, SlotNegotiation, claim_cap, decide, protected
 from ost_ros.protocols import make_agents
 from ost_ros.protocols.ncp import SPEC as NCP
 from ost_ros.scenario import build_scenario, generate_objects, generate_scenario
-from ost_ros.engines import finish_result, simulate
 from ost_ros.world import World
 from strategies import policies, scenarios
 
