@@ -3,6 +3,7 @@
 Installable with pip (``bringup_scripts/setup.sh``) or built by colcon on a full ROS 2 install,
 where ``ros2 run ost_ros world_node`` / ``ros2 run ost_ros agent_node`` work.
 """
+
 from setuptools import find_packages, setup
 
 package_name = "ost_ros"
@@ -10,8 +11,18 @@ package_name = "ost_ros"
 setup(
     name=package_name,
     version="0.1.0",
-    packages=find_packages(include=["ost_ros", "ost_ros.*", "ost_msgs_py", "ost_msgs_py.*",
-                                    "world_node", "world_node.*", "agent_node", "agent_node.*"]),
+    packages=find_packages(
+        include=[
+            "ost_ros",
+            "ost_ros.*",
+            "ost_msgs_py",
+            "ost_msgs_py.*",
+            "world_node",
+            "world_node.*",
+            "agent_node",
+            "agent_node.*",
+        ]
+    ),
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),

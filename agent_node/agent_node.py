@@ -15,6 +15,7 @@ tick of that step or later; -1 = never). The agent is built by its protocol's fa
 registry) and runs unchanged: the node only orders its calls (:mod:`agent_node.runtime`) and
 moves messages.
 """
+
 from __future__ import annotations
 
 import functools
@@ -62,9 +63,22 @@ OPTIONS = [o for spec in protocols.REGISTRY.values() for o in spec.options]
 
 def load_agent(node: Node) -> tuple[Scenario, CoordinationPolicy, AgentRuntime]:
     """Read and check the parameters; the runtime around the core agent."""
-    p = {name: node.get_parameter(name).value for name in
-         ("agent_id", "scenario", "agents", "protocol", "ci", "interval", "area_fraction",
-          "lookahead", "mute_negotiation_from", "coordination", *(o.name for o in OPTIONS))}
+    p = {
+        name: node.get_parameter(name).value
+        for name in (
+            "agent_id",
+            "scenario",
+            "agents",
+            "protocol",
+            "ci",
+            "interval",
+            "area_fraction",
+            "lookahead",
+            "mute_negotiation_from",
+            "coordination",
+            *(o.name for o in OPTIONS),
+        )
+    }
     if p["agent_id"] < 0:
         raise ParameterError("agent_id: must be set to a non-negative id (-p agent_id:=N)")
     if not p["scenario"]:
@@ -81,11 +95,15 @@ def load_agent(node: Node) -> tuple[Scenario, CoordinationPolicy, AgentRuntime]:
         scenario = load_scenario(p["scenario"])
         if p["agents"]:
             scenario = with_team(scenario, p["agents"])
-        policy = CoordinationPolicy(ci=p["ci"], interval=p["interval"] or None,
-                                    area_fraction=p["area_fraction"] or None,
-                                    organisation=p["coordination"])
-        spec = protocols.check(p["protocol"], scenario=scenario, policy=policy,
-                               silence=p["mute_negotiation_from"] >= 0)
+        policy = CoordinationPolicy(
+            ci=p["ci"],
+            interval=p["interval"] or None,
+            area_fraction=p["area_fraction"] or None,
+            organisation=p["coordination"],
+        )
+        spec = protocols.check(
+            p["protocol"], scenario=scenario, policy=policy, silence=p["mute_negotiation_from"] >= 0
+        )
     except protocols.ProtocolError as exc:
         raise ParameterError(f"protocol: {exc}") from None
     except ScenarioError as exc:
@@ -131,11 +149,15 @@ class AgentRunner:
         self.resent_at: float | None = None
         self.sub_end = node.create_subscription(String, tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS)
         # A protocol's own channels (NCP's moves) have their own topics (same QoS, same barrier).
-        self.channel_pubs = {c: node.create_publisher(String, tp.channel_topic(c), q)
-                             for c in runtime.channels}
-        self.channel_subs = [node.create_subscription(String, tp.channel_topic(c),
-                                                      functools.partial(self.on_channel, channel=c), q)
-                             for c in runtime.channels]
+        self.channel_pubs = {
+            c: node.create_publisher(String, tp.channel_topic(c), q) for c in runtime.channels
+        }
+        self.channel_subs = [
+            node.create_subscription(
+                String, tp.channel_topic(c), functools.partial(self.on_channel, channel=c), q
+            )
+            for c in runtime.channels
+        ]
         self.sub_result = node.create_subscription(String, tp.RESULT, self.on_result, tp.RESULT_QOS)
         # Published to once (at ready); after that DDS asserts its liveliness by itself and the
         # world watches it (failures).
@@ -150,24 +172,27 @@ class AgentRunner:
 
     def matched(self) -> bool:
         """Every endpoint this agent needs is matched (counted, never waited for by sleeping)."""
-        return (self.pub_acted.get_subscription_count() >= 1
-                and self.pub_ready.get_subscription_count() >= 1
-                and self.pub_report.get_subscription_count() >= 1
-                and self.pub_batch.get_subscription_count() >= self.n
-                and self.sub_batch.get_publisher_count() >= self.n
-                and self.sub_tick.get_publisher_count() >= 1
-                and self.sub_end.get_publisher_count() >= 1
-                and self.pub_alive.get_subscription_count() >= 1
-                and all(pub.get_subscription_count() >= self.n for pub in self.channel_pubs.values())
-                and all(sub.get_publisher_count() >= self.n for sub in self.channel_subs))
+        return (
+            self.pub_acted.get_subscription_count() >= 1
+            and self.pub_ready.get_subscription_count() >= 1
+            and self.pub_report.get_subscription_count() >= 1
+            and self.pub_batch.get_subscription_count() >= self.n
+            and self.sub_batch.get_publisher_count() >= self.n
+            and self.sub_tick.get_publisher_count() >= 1
+            and self.sub_end.get_publisher_count() >= 1
+            and self.pub_alive.get_subscription_count() >= 1
+            and all(pub.get_subscription_count() >= self.n for pub in self.channel_pubs.values())
+            and all(sub.get_publisher_count() >= self.n for sub in self.channel_subs)
+        )
 
     def on_timer(self) -> None:
         if not self.ready_sent:
             if self.matched():
                 # One sample asserts this robot's liveliness at once (the world waits for it)
                 self.pub_alive.publish(String(data=f"agent {self.rt.me}"))
-                self.pub_ready.publish(tp.to_string(Ready(self.rt.me, self.protocol, self.fingerprint,
-                                                          self.organisation)))
+                self.pub_ready.publish(
+                    tp.to_string(Ready(self.rt.me, self.protocol, self.fingerprint, self.organisation))
+                )
                 self.ready_sent = True
                 self.world_seen = True
                 self.node.get_logger().info(f"ready: {self.n} agents and the world matched")
@@ -178,14 +203,17 @@ class AgentRunner:
         if held is not None and held[1]:
             self.held_since = self.held_since or now
             if now - self.held_since > tp.RESEND_S and now - (self.resent_at or 0.0) > tp.RESEND_S:
-                self.pub_resend.publish(tp.to_string(Resend(self.rt.me, self.rt.last, held[1],
-                                                            self.rt.run or "")))
+                self.pub_resend.publish(
+                    tp.to_string(Resend(self.rt.me, self.rt.last, held[1], self.rt.run or ""))
+                )
                 self.resent_at = now
             if now - self.held_since > STALL_S:
-                self.throttle.note(("stall", "barrier"),
-                                   f"tick {held[0]} held for {STALL_S:g} s: no step messages yet "
-                                   f"from agents {list(held[1])} (asked again every "
-                                   f"{tp.RESEND_S:g} s)")
+                self.throttle.note(
+                    ("stall", "barrier"),
+                    f"tick {held[0]} held for {STALL_S:g} s: no step messages yet "
+                    f"from agents {list(held[1])} (asked again every "
+                    f"{tp.RESEND_S:g} s)",
+                )
                 self.held_since = now
         else:
             self.held_since = None
@@ -200,7 +228,7 @@ class AgentRunner:
     # ------------------------------------------------------------------ traffic
 
     def _progress(self) -> None:
-        while self.rt.dropped:   # batches of another run that came before the first tick
+        while self.rt.dropped:  # batches of another run that came before the first tick
             sender, why = self.rt.dropped.pop()
             self.throttle.warn(tp.STEP_MESSAGES, f"agent {sender}", why)
         for out in self.rt.progress():
@@ -226,11 +254,12 @@ class AgentRunner:
         self._progress()
 
     def on_tick(self, msg: String) -> None:
-        if self.die_at >= 0:   # fault injection: die as a robot does, with no last word
+        if self.die_at >= 0:  # fault injection: die as a robot does, with no last word
             tick = tp.decode_or_warn(msg, self.tick_topic, Tick, self.throttle)
             if tick is not None and tick.t >= self.die_at:
-                self.node.get_logger().warning(f"die_at_step {self.die_at}: killing this process "
-                                               f"(SIGKILL) on the tick of step {tick.t}")
+                self.node.get_logger().warning(
+                    f"die_at_step {self.die_at}: killing this process (SIGKILL) on the tick of step {tick.t}"
+                )
                 sys.stderr.flush()
                 os.kill(os.getpid(), signal.SIGKILL)
         self._feed(msg, self.tick_topic, Tick, self.rt.accept_tick)
@@ -301,7 +330,7 @@ def agent_id_from_args(argv: list[str]) -> int | None:
                     if isinstance(params, dict) and "agent_id" in params:
                         value = params["agent_id"]
             except (OSError, yaml.YAMLError, AttributeError):
-                pass   # the node reports a bad params file itself
+                pass  # the node reports a bad params file itself
             k += 1
         k += 1
     try:
@@ -332,13 +361,13 @@ def main(args=None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception as exc:  # a parameter of the wrong type, and the like: one line, no traceback
-        if "Parameter" in type(exc).__name__:   # wrong parameter type from --ros-args
+        if "Parameter" in type(exc).__name__:  # wrong parameter type from --ros-args
             print(f"agent_node: error: {exc}", file=sys.stderr)
             code = 2
         else:
             raise
     finally:
-        tp.guard_exit()   # never hang in teardown (see transport.guard_exit)
+        tp.guard_exit()  # never hang in teardown (see transport.guard_exit)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

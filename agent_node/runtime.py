@@ -14,6 +14,7 @@ messages — the simulator's order. Batches are published before the action, and
 keeps the batches of the last few steps, so a peer's batch that a failed sender got to only
 some agents is relayed by the others on a Resend.
 """
+
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
@@ -37,19 +38,19 @@ from ost_ros.model import Cell
 from ost_ros.protocols.base import ProtocolAgent
 from ost_ros.protocols.plans import Plan, PlannedStep, unroll
 
-_SENSE = tuple((dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1))   # the world's sensing order
+_SENSE = tuple((dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1))  # the world's sensing order
 
 
-STEP = "step"   # the channel of every protocol message without a channel of its own
+STEP = "step"  # the channel of every protocol message without a channel of its own
 
 
 @dataclass
 class AgentRuntime:
-    agent: ProtocolAgent                # a core agent: act(obs), outbox(), communicate(t, msgs)
-    team: tuple[int, ...]               # every agent id, ascending (the simulator's inbox order)
-    lookahead: int = 0                  # plan this many quiet steps ahead (0: no event skipping)
-    last: int = -1                      # the last step this agent acted on
-    sent: int = 0                       # protocol messages broadcast so far
+    agent: ProtocolAgent  # a core agent: act(obs), outbox(), communicate(t, msgs)
+    team: tuple[int, ...]  # every agent id, ascending (the simulator's inbox order)
+    lookahead: int = 0  # plan this many quiet steps ahead (0: no event skipping)
+    last: int = -1  # the last step this agent acted on
+    sent: int = 0  # protocol messages broadcast so far
     finished: bool = False
     _tick: Tick | None = None
     _end: RunEnd | None = None
@@ -57,7 +58,7 @@ class AgentRuntime:
     _own: list[AgentMessage] = field(default_factory=list)
     _plan: tuple[PlanStep, ...] = ()
     _known: dict[int, ObjectInfo] = field(default_factory=dict)
-    _horizon: int = 8                   # current planning depth, adapted to what the world skips
+    _horizon: int = 8  # current planning depth, adapted to what the world skips
     # Recovery from a lost sample: what was published for the last step, to publish again.
     _last_tick: Tick | None = None
     _last_out: list[Any] = field(default_factory=list)
@@ -65,8 +66,8 @@ class AgentRuntime:
     _resend: list[Any] = field(default_factory=list)
     _relay: dict[int, dict[int, dict[str, StepMessages]]] = field(default_factory=dict)
     _report: AgentReport | None = None
-    run: str | None = None              # the world's run id, from the first tick
-    _early: list[StepMessages] = field(default_factory=list)   # batches before the first tick
+    run: str | None = None  # the world's run id, from the first tick
+    _early: list[StepMessages] = field(default_factory=list)  # batches before the first tick
     dropped: list[tuple[int, str]] = field(default_factory=list)  # (sender, why): other runs'
 
     def __post_init__(self) -> None:
@@ -81,7 +82,7 @@ class AgentRuntime:
 
     def accept_batch(self, batch: StepMessages) -> None:
         if self.run is None:
-            self._early.append(batch)   # checked once the first tick says which run this is
+            self._early.append(batch)  # checked once the first tick says which run this is
             return
         if batch.run != self.run:
             raise ProtocolViolation(f"step_messages of run {batch.run!r}, this is run {self.run!r}")
@@ -89,10 +90,12 @@ class AgentRuntime:
             return  # own batch: kept locally when sent
         if batch.sender not in self.team:
             raise ProtocolViolation(f"step_messages from agent {batch.sender}, not in the team")
-        if (batch.channel != STEP and batch.channel not in self.channels) \
-                or not 1 <= batch.parts <= 1 + len(self.channels):
-            raise ProtocolViolation(f"step_messages of agent {batch.sender}: channel "
-                                    f"{batch.channel!r}, {batch.parts} parts")
+        if (batch.channel != STEP and batch.channel not in self.channels) or not 1 <= batch.parts <= 1 + len(
+            self.channels
+        ):
+            raise ProtocolViolation(
+                f"step_messages of agent {batch.sender}: channel {batch.channel!r}, {batch.parts} parts"
+            )
         if batch.t < self.last:
             return  # a re-sent batch of a step already done (see Resend)
         parts = self._batches.setdefault(batch.t, {}).setdefault(batch.sender, {})
@@ -100,11 +103,13 @@ class AgentRuntime:
         if known is not None:
             if known == batch:
                 return  # the same batch again (see Resend)
-            raise ProtocolViolation(f"second, different step_messages of agent {batch.sender} "
-                                    f"for step {batch.t}")
+            raise ProtocolViolation(
+                f"second, different step_messages of agent {batch.sender} for step {batch.t}"
+            )
         if any(p.parts != batch.parts for p in parts.values()):
-            raise ProtocolViolation(f"step_messages of agent {batch.sender} for step {batch.t} "
-                                    "disagree on their number of parts")
+            raise ProtocolViolation(
+                f"step_messages of agent {batch.sender} for step {batch.t} disagree on their number of parts"
+            )
         parts[batch.channel] = batch
 
     def accept_resend(self, req: Resend) -> None:
@@ -115,7 +120,7 @@ class AgentRuntime:
             raise ProtocolViolation(f"resend request from agent {req.sender}, not in the team")
         if self.me in req.peers:
             self._resend.extend(b for b in self._batches_sent.get(req.t, ()) if b not in self._resend)
-        for peer in req.peers:   # relay what this agent holds of others (a sender may be dead)
+        for peer in req.peers:  # relay what this agent holds of others (a sender may be dead)
             if peer in (self.me, req.sender):
                 continue
             parts = self._relay.get(req.t, {}).get(peer) or self._batches.get(req.t, {}).get(peer) or {}
@@ -123,8 +128,9 @@ class AgentRuntime:
 
     def accept_tick(self, tick: Tick) -> None:
         if tick.observation.agent != self.me or tick.observation.t != tick.t:
-            raise ProtocolViolation(f"tick for agent {tick.observation.agent} step "
-                                    f"{tick.observation.t}, this is agent {self.me}")
+            raise ProtocolViolation(
+                f"tick for agent {tick.observation.agent} step {tick.observation.t}, this is agent {self.me}"
+            )
         if self.run is not None and tick.run != self.run:
             raise ProtocolViolation(f"tick of run {tick.run!r}, this is run {self.run!r}")
         if self.run is None and tick.t == 0 and tick.last == -1:
@@ -144,25 +150,29 @@ class AgentRuntime:
             self._resend.extend(m for m in self._last_out if m not in self._resend)
             return
         if tick.last != self.last or tick.t <= self.last or self._tick is not None:
-            raise ProtocolViolation(f"tick for step {tick.t} after {tick.last}, this agent acted "
-                                    f"last in step {self.last}")
+            raise ProtocolViolation(
+                f"tick for step {tick.t} after {tick.last}, this agent acted last in step {self.last}"
+            )
         if tick.t - tick.last - 1 > len(self._plan):
-            raise ProtocolViolation(f"tick skips {tick.t - tick.last - 1} steps, the plan has "
-                                    f"{len(self._plan)}")
+            raise ProtocolViolation(
+                f"tick skips {tick.t - tick.last - 1} steps, the plan has {len(self._plan)}"
+            )
         self._tick = tick
 
     def accept_end(self, end: RunEnd) -> None:
         if end.run != self.run:
             raise ProtocolViolation(f"run_end of run {end.run!r}, this is run {self.run!r}")
         if self._report is not None:
-            if self._report not in self._resend:   # the world re-sent run_end: report again
+            if self._report not in self._resend:  # the world re-sent run_end: report again
                 self._resend.append(self._report)
             return
         if end == self._end:
             return
         if end.last != self.last or end.steps - end.last - 1 > len(self._plan):
-            raise ProtocolViolation(f"run_end after step {end.last} (+{end.steps - end.last - 1} "
-                                    f"skipped), this agent acted last in step {self.last}")
+            raise ProtocolViolation(
+                f"run_end after step {end.last} (+{end.steps - end.last - 1} "
+                f"skipped), this agent acted last in step {self.last}"
+            )
         self._end = end
 
     # ------------------------------------------------------------------ progress
@@ -181,8 +191,7 @@ class AgentRuntime:
     def _ready(self, peers: tuple[int, ...]) -> bool:
         return all(p == self.me or self._has(p) for p in peers)
 
-    def _finish_step(self, peers: tuple[int, ...], until: int,
-                     failed: tuple[AgentLost, ...] = ()) -> None:
+    def _finish_step(self, peers: tuple[int, ...], until: int, failed: tuple[AgentLost, ...] = ()) -> None:
         """Comm module for ``self.last``, then replay the skipped steps up to ``until`` - 1."""
         if self.last >= 0:
             have = self._batches.pop(self.last, {})
@@ -265,15 +274,16 @@ class AgentRuntime:
         an object it reacts to."""
         steps = unroll(plan, obs.t, obs.position, 1 + min(self.lookahead, self._horizon))
         if not steps or not _same_action(action, steps[0]):
-            return ()   # the plan does not start with what it did (never, if plans are right)
+            return ()  # the plan does not start with what it did (never, if plans are right)
         departures = self.agent.departures()
         out = []
         for st in steps[1:]:
             sensed = self._predict_sensed(st.position, st.t, departures) if st.reads_sensor else ()
             if any(self.agent.news(self._known[i]) for i in sensed):
                 break
-            out.append(PlanStep(st.position, st.reads_sensor, sensed, st.kind, st.direction,
-                                st.object, st.state))
+            out.append(
+                PlanStep(st.position, st.reads_sensor, sensed, st.kind, st.direction, st.object, st.state)
+            )
         return tuple(out)
 
     def _predict_sensed(self, pos: Cell, s: int, departures: Mapping[int, int]) -> tuple[int, ...]:
@@ -297,13 +307,28 @@ class AgentRuntime:
         k = self.agent.summary()
         schedule = tuple(ScheduleEntry(a.object, tuple(a.agents), a.start, a.finish) for a in k.schedule)
         found = tuple((int(o), int(t)) for o, t in k.found.items())
-        return AgentReport(self.me, self.agent.protocol, k.trigger, k.predicted_makespan,
-                           k.coordinations, schedule, found, k.warnings, self.sent, k.view,
-                           run=self.run or "")
+        return AgentReport(
+            self.me,
+            self.agent.protocol,
+            k.trigger,
+            k.predicted_makespan,
+            k.coordinations,
+            schedule,
+            found,
+            k.warnings,
+            self.sent,
+            k.view,
+            run=self.run or "",
+        )
 
 
-def split_batch(sender: int, t: int, messages: Sequence[AgentMessage], run: str = "",
-                channels: Mapping[str, tuple[type, ...]] | None = None) -> list[StepMessages]:
+def split_batch(
+    sender: int,
+    t: int,
+    messages: Sequence[AgentMessage],
+    run: str = "",
+    channels: Mapping[str, tuple[type, ...]] | None = None,
+) -> list[StepMessages]:
     """A step's messages as batches per channel: each protocol message kind its protocol gives a
     channel of its own goes there (NCP's moves), the rest on ``step``."""
     own = {cls: name for name, kinds in (channels or {}).items() for cls in kinds}
@@ -315,5 +340,9 @@ def split_batch(sender: int, t: int, messages: Sequence[AgentMessage], run: str 
 
 
 def _same_action(action: Action, step: PlanStep | PlannedStep) -> bool:
-    return (action.kind is step.kind and tuple(action.direction) == tuple(step.direction)
-            and action.object == step.object and action.state == step.state)
+    return (
+        action.kind is step.kind
+        and tuple(action.direction) == tuple(step.direction)
+        and action.object == step.object
+        and action.state == step.state
+    )

@@ -5,6 +5,7 @@ QoS per topic (see docs/ros.md): everything the lockstep needs is reliable + kee
 sample of a step is ever dropped (loss would break agreement); discovery hand-shakes and the
 result are transient-local, so a late joiner still gets them.
 """
+
 from __future__ import annotations
 
 import faulthandler
@@ -26,13 +27,13 @@ WORLD_NODE = "world"
 
 CLOCK = "/clock"
 MARKERS = "/ost/markers"
-ACTED = "/ost/acted"                    # agent → world
-STEP_MESSAGES = "/ost/step_messages"    # agent → all agents
-RESEND = "/ost/resend"                  # agent → agents: publish a lost batch again
-READY = "/ost/ready"                    # agent → world
-RUN_END = "/ost/run_end"                # world → all agents
-REPORTS = "/ost/reports"                # agent → world
-RESULT = "/ost/result"                  # world → anyone
+ACTED = "/ost/acted"  # agent → world
+STEP_MESSAGES = "/ost/step_messages"  # agent → all agents
+RESEND = "/ost/resend"  # agent → agents: publish a lost batch again
+READY = "/ost/ready"  # agent → world
+RUN_END = "/ost/run_end"  # world → all agents
+REPORTS = "/ost/reports"  # agent → world
+RESULT = "/ost/result"  # world → anyone
 
 
 def channel_topic(channel: str) -> str:
@@ -64,9 +65,14 @@ def alive_qos(lease_s: float) -> QoSProfile:
     """AUTOMATIC liveliness with a finite lease: the DDS participant asserts it from its own
     thread, so a busy Python agent is never mistaken for a dead one; a killed process stops
     asserting and the world's reader reports it within the lease. ``lease_s`` <= 0: no lease."""
-    return QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.VOLATILE, liveliness=LivelinessPolicy.AUTOMATIC,
-                      liveliness_lease_duration=Duration(seconds=max(lease_s, 0.0)))  # 0: infinite
+    return QoSProfile(
+        depth=1,
+        history=HistoryPolicy.KEEP_LAST,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.VOLATILE,
+        liveliness=LivelinessPolicy.AUTOMATIC,
+        liveliness_lease_duration=Duration(seconds=max(lease_s, 0.0)),
+    )  # 0: infinite
 
 
 # If a step stalls this long, the missing samples are asked for again (world: ticks and run_end;
@@ -75,19 +81,31 @@ def alive_qos(lease_s: float) -> QoSProfile:
 RESEND_S = 1.0
 
 # Lockstep traffic: nothing may be lost or overwritten.
-LOCKSTEP_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.VOLATILE)
+LOCKSTEP_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_ALL,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 # Hand-shakes and reports: also delivered to a subscriber that appears later.
-LATCHED_ALL_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED_ALL_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_ALL,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 # The result: the last one is what counts.
-RESULT_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                        reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+RESULT_QOS = QoSProfile(
+    depth=1,
+    history=HistoryPolicy.KEEP_LAST,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 # Display and time: only the newest sample matters (reliable also matches best-effort readers).
-LATEST_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                        reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.VOLATILE)
+LATEST_QOS = QoSProfile(
+    depth=1,
+    history=HistoryPolicy.KEEP_LAST,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 
 # Topic → (QoS, who publishes, who subscribes): the documented graph, checked by the tests.
 TOPICS: dict[str, tuple[QoSProfile, str]] = {
@@ -105,8 +123,7 @@ TOPICS: dict[str, tuple[QoSProfile, str]] = {
 
 def protocol_topics(protocol: str) -> dict[str, tuple[QoSProfile, str]]:
     """Topics only a run of the given protocol has (same QoS and type as the step messages)."""
-    return {channel_topic(c): (LOCKSTEP_QOS, "std_msgs/msg/String")
-            for c in protocols.get(protocol).channels}
+    return {channel_topic(c): (LOCKSTEP_QOS, "std_msgs/msg/String") for c in protocols.get(protocol).channels}
 
 
 def scenario_fingerprint(scenario: Scenario) -> str:

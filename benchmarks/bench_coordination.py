@@ -4,6 +4,7 @@
 
 Prints the median and best wall time of one full coordination (all M objects in one batch).
 """
+
 import argparse
 import statistics
 import time
@@ -32,8 +33,10 @@ def main() -> None:
         t0 = time.perf_counter()
         coordinate(ids, cost, loc, objects)
         times.append(time.perf_counter() - t0)
-    print(f"coordinate M={a.objects} N={a.agents}: median {statistics.median(times) * 1e3:.1f} ms, "
-          f"best {min(times) * 1e3:.1f} ms over {a.repeat} runs")
+    print(
+        f"coordinate M={a.objects} N={a.agents}: median {statistics.median(times) * 1e3:.1f} ms, "
+        f"best {min(times) * 1e3:.1f} ms over {a.repeat} runs"
+    )
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ Targets (issue [repro]): --quick under 20 s, the full study under 120 s on a 2-c
 Prints wall time, the workers' CPU seconds and the load average (a busy shared machine inflates
 wall time; CPU seconds / cores is what an idle machine would take). Output goes to /tmp.
 """
+
 import argparse
 import os
 import subprocess
@@ -23,19 +24,22 @@ def reproduce(quick: bool) -> None:
     with tempfile.TemporaryDirectory(prefix="ost_bench_") as out:
         cmd = [sys.executable, "-m", "ost_ros", "reproduce", "--out", out, "--no-progress"]
         t0 = time.perf_counter()
-        r = subprocess.run(cmd + (["--quick"] if quick else []), capture_output=True, text=True,
-                           check=True)
+        r = subprocess.run(cmd + (["--quick"] if quick else []), capture_output=True, text=True, check=True)
         wall = time.perf_counter() - t0
     target = 20 if quick else 120
-    print(f"reproduce {'--quick' if quick else '(full)'}: {wall:.1f} s end to end "
-          f"(target < {target} s: {'met' if wall < target else 'MISSED'}); {r.stderr.strip()}")
+    print(
+        f"reproduce {'--quick' if quick else '(full)'}: {wall:.1f} s end to end "
+        f"(target < {target} s: {'met' if wall < target else 'MISSED'}); {r.stderr.strip()}"
+    )
 
 
 def engines() -> None:
-    for n, m, proto, policy in ((10, 50, "ccp", CoordinationPolicy(ci=1)),
-                                (50, 50, "ccp", CoordinationPolicy(ci=50)),
-                                (10, 50, "hcp", CoordinationPolicy()),
-                                (50, 50, "hcp", CoordinationPolicy())):
+    for n, m, proto, policy in (
+        (10, 50, "ccp", CoordinationPolicy(ci=1)),
+        (50, 50, "ccp", CoordinationPolicy(ci=50)),
+        (10, 50, "hcp", CoordinationPolicy()),
+        (50, 50, "hcp", CoordinationPolicy()),
+    ):
         s = generate_scenario(n, m, 1)
         t0 = time.perf_counter()
         a = simulate(s, proto, policy)
@@ -43,8 +47,10 @@ def engines() -> None:
         b = simulate_events(s, proto, policy)
         t2 = time.perf_counter()
         same = a.to_dict() == b.to_dict()
-        print(f"{proto} N={n} M={m} makespan {a.makespan}: step {t1 - t0:.2f} s, event "
-              f"{t2 - t1:.3f} s ({(t1 - t0) / (t2 - t1):.0f}x), identical: {same}")
+        print(
+            f"{proto} N={n} M={m} makespan {a.makespan}: step {t1 - t0:.2f} s, event "
+            f"{t2 - t1:.3f} s ({(t1 - t0) / (t2 - t1):.0f}x), identical: {same}"
+        )
 
 
 def main() -> None:

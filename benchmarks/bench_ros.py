@@ -8,6 +8,7 @@ identical and prints: wall time (bring-up included), summed peak RSS of all node
 (from /proc status VmHWM, sampled), round trips, skipped steps, protocol messages, and the DDS
 samples published (ticks + acted per round trip, batches per sender-step).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -49,14 +50,21 @@ def bench(n: int, m: int, skip: bool, width: int, height: int, tmp: Path) -> dic
     t0 = time.perf_counter()
     ref = simulate(scenario, "ccp", CoordinationPolicy()).to_dict()
     sim_s = time.perf_counter() - t0
-    ref["lower_bound"] = lower_bound(scenario).value   # `ost sim` and the world node print it
+    ref["lower_bound"] = lower_bound(scenario).value  # `ost sim` and the world node print it
     run_dir = tmp / f"run_{n}_{m}_{int(skip)}"
-    args = ["bash", str(REPO / "bringup_scripts/ost_up.sh"), "--scenario", str(path), "--json",
-            "--run-dir", str(run_dir)] + ([] if skip else ["--no-skip"])
+    args = [
+        "bash",
+        str(REPO / "bringup_scripts/ost_up.sh"),
+        "--scenario",
+        str(path),
+        "--json",
+        "--run-dir",
+        str(run_dir),
+    ] + ([] if skip else ["--no-skip"])
     t0 = time.perf_counter()
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     peak = 0.0
-    while proc.poll() is None:   # sample the processes' high-water marks while they live
+    while proc.poll() is None:  # sample the processes' high-water marks while they live
         peak = max(peak, peak_rss_mb(run_dir))
         time.sleep(0.5)
     out, err = proc.communicate()
@@ -67,11 +75,22 @@ def bench(n: int, m: int, skip: bool, width: int, height: int, tmp: Path) -> dic
     same = json.loads(out) == ref
     batches = stats["protocol_messages"]  # upper bound on batches: one per sender-step with messages
     dds = stats["round_trips"] * 2 * n
-    return {"N": n, "M": m, "skip": skip, "identical": same, "wall_s": round(wall, 1),
-            "run_s": stats["wall_s"], "peak_rss_mb": round(peak), "steps": stats["steps"],
-            "round_trips": stats["round_trips"], "skipped": stats["skipped_steps"],
-            "protocol_messages": stats["protocol_messages"],
-            "dds_samples_lockstep": dds, "dds_batches_max": batches, "sim_s": round(sim_s, 2)}
+    return {
+        "N": n,
+        "M": m,
+        "skip": skip,
+        "identical": same,
+        "wall_s": round(wall, 1),
+        "run_s": stats["wall_s"],
+        "peak_rss_mb": round(peak),
+        "steps": stats["steps"],
+        "round_trips": stats["round_trips"],
+        "skipped": stats["skipped_steps"],
+        "protocol_messages": stats["protocol_messages"],
+        "dds_samples_lockstep": dds,
+        "dds_batches_max": batches,
+        "sim_s": round(sim_s, 2),
+    }
 
 
 def main() -> int:

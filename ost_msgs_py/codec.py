@@ -10,6 +10,7 @@ dataclasses, ``tuple[T, ...]``, fixed ``tuple[A, B]``, ``X | None``, and :data:`
 (any registered message, tagged with its ``type``). Anything invalid raises :class:`MessageError`
 naming the field path, e.g. ``observation.sensed[2].location[0]: expected an integer, got 'a'``.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -135,7 +136,7 @@ def _from_json(value: Any, hint: Any, where: str) -> Any:
             allowed = ", ".join(str(m.value) for m in hint)
             raise MessageError(f"{where}: {_describe(value)} is not one of {allowed}") from None
     if isinstance(hint, type) and dataclasses.is_dataclass(hint):
-        if hasattr(hint, "TYPE"):   # a nested message keeps its type tag and version
+        if hasattr(hint, "TYPE"):  # a nested message keeps its type tag and version
             return _message(value, (hint,), where)
         return _fields(value, hint, where)
     raise MessageError(f"{where}: unsupported field type {hint!r}")
@@ -152,8 +153,12 @@ def _union(value: Any, options: tuple[Any, ...], where: str) -> Any:
             return _from_json(value, opt, where)
         except MessageError as exc:
             errors.append(str(exc))
-    raise MessageError(errors[0] if len(errors) == 1 else f"{where}: {_describe(value)} fits none of "
-                       f"{', '.join(getattr(o, '__name__', str(o)) for o in options)}")
+    raise MessageError(
+        errors[0]
+        if len(errors) == 1
+        else f"{where}: {_describe(value)} fits none of "
+        f"{', '.join(getattr(o, '__name__', str(o)) for o in options)}"
+    )
 
 
 def _tuple(value: Any, args: tuple[Any, ...], where: str) -> tuple[Any, ...]:
@@ -203,8 +208,10 @@ def _message(data: Any, expected: tuple[type[Any], ...] | None, where: str) -> A
         if "version" not in data:
             raise MessageError(f"{where}.version: missing")
         if data["version"] != want or isinstance(data["version"], bool):
-            raise MessageError(f"{where}.version: unsupported version {_describe(data['version'])} "
-                               f"of {tag} (expected {want})")
+            raise MessageError(
+                f"{where}.version: unsupported version {_describe(data['version'])} "
+                f"of {tag} (expected {want})"
+            )
     return _fields(data, cls, where, skip=("type",))
 
 

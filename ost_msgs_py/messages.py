@@ -12,6 +12,7 @@ Two families:
   coordinator organisation's :class:`ScheduleUpdate`;
 - agent ↔ world (sensing and acting): :class:`Observation`, :class:`Action`.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -127,7 +128,7 @@ class HelpRelease:
 
 
 NEGOTIATION_KINDS = ("offer", "exit")
-BROADCAST = -1   # receiver of a message meant for every team mate
+BROADCAST = -1  # receiver of a message meant for every team mate
 
 
 @dataclass(frozen=True)
@@ -175,7 +176,7 @@ class ScheduleUpdate:
     version: int = SCHEMA_VERSION
 
 
-WORLD = -1   # sender of the world's notices
+WORLD = -1  # sender of the world's notices
 
 
 @dataclass(frozen=True)
@@ -189,7 +190,7 @@ class AgentLost:
     TYPE: ClassVar[str] = "agent_lost"
     agent: int
     t: int
-    dropped: tuple[ObjectInfo, ...] = ()   # what it was holding, where it fell (world truth)
+    dropped: tuple[ObjectInfo, ...] = ()  # what it was holding, where it fell (world truth)
     sender: int = WORLD
     version: int = SCHEMA_VERSION
 
@@ -254,12 +255,33 @@ class Action:
     version: int = SCHEMA_VERSION
 
 
-AGENT_MESSAGES: tuple[type[Any], ...] = (ObjectFound, SearchDone, Selection, HelpRequest, HelpOffer,
-                                    HelpAccept, HelpRelease, NegotiationOffer, Status, AgentLost,
-                                    ScheduleUpdate)
+AGENT_MESSAGES: tuple[type[Any], ...] = (
+    ObjectFound,
+    SearchDone,
+    Selection,
+    HelpRequest,
+    HelpOffer,
+    HelpAccept,
+    HelpRelease,
+    NegotiationOffer,
+    Status,
+    AgentLost,
+    ScheduleUpdate,
+)
 WORLD_MESSAGES: tuple[type[Any], ...] = (Observation, Action)
 ALL_MESSAGES: dict[str, type[Any]] = {cls.TYPE: cls for cls in AGENT_MESSAGES + WORLD_MESSAGES}
 
 # Any message an agent's comm module takes in (the world's AgentLost notice included).
-AgentMessage = (ObjectFound | SearchDone | Selection | HelpRequest | HelpOffer | HelpAccept | HelpRelease
-                | NegotiationOffer | Status | AgentLost | ScheduleUpdate)
+AgentMessage = (
+    ObjectFound
+    | SearchDone
+    | Selection
+    | HelpRequest
+    | HelpOffer
+    | HelpAccept
+    | HelpRelease
+    | NegotiationOffer
+    | Status
+    | AgentLost
+    | ScheduleUpdate
+)

@@ -22,6 +22,7 @@ Every message of a run carries the world's ``run`` id (random per run, kept acro
 restart): agents learn it from their first tick, and anything stamped with another run's id — a
 stray publisher, a leftover node of an earlier run — is dropped with a warning.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -47,8 +48,8 @@ class Ready:
     TYPE: ClassVar[str] = "ready"
     agent: int
     protocol: str
-    scenario: str               # fingerprint of the scenario the agent loaded (must match the world's)
-    organisation: str = "distributed"   # who coordinates (CCP): decides whether failures recover
+    scenario: str  # fingerprint of the scenario the agent loaded (must match the world's)
+    organisation: str = "distributed"  # who coordinates (CCP): decides whether failures recover
     version: int = RUNTIME_VERSION
 
 
@@ -71,8 +72,8 @@ class Tick:
     last: int
     observation: Observation
     peers: tuple[int, ...] = ()
-    run: str = ""                          # the world's run id (strays of other runs are dropped)
-    failed: tuple[AgentLost, ...] = ()   # every failure so far (the world's notices)
+    run: str = ""  # the world's run id (strays of other runs are dropped)
+    failed: tuple[AgentLost, ...] = ()  # every failure so far (the world's notices)
     version: int = RUNTIME_VERSION
 
 
@@ -106,7 +107,7 @@ class Acted:
     action: Action
     sent: int
     plan: tuple[PlanStep, ...] = ()
-    run: str = ""                          # the world's run id (strays of other runs are dropped)
+    run: str = ""  # the world's run id (strays of other runs are dropped)
     version: int = RUNTIME_VERSION
 
 
@@ -125,7 +126,7 @@ class StepMessages:
     messages: tuple[AnyMessage, ...] = ()
     channel: str = "step"
     parts: int = 1
-    run: str = ""                          # the world's run id (strays of other runs are dropped)
+    run: str = ""  # the world's run id (strays of other runs are dropped)
     version: int = RUNTIME_VERSION
 
 
@@ -138,7 +139,7 @@ class Resend:
     sender: int
     t: int
     peers: tuple[int, ...]
-    run: str = ""                          # the world's run id (strays of other runs are dropped)
+    run: str = ""  # the world's run id (strays of other runs are dropped)
     version: int = RUNTIME_VERSION
 
 
@@ -153,8 +154,8 @@ class RunEnd:
     last: int
     completed: bool
     peers: tuple[int, ...] = ()
-    run: str = ""                          # the world's run id (strays of other runs are dropped)
-    failed: tuple[AgentLost, ...] = ()   # as in Tick
+    run: str = ""  # the world's run id (strays of other runs are dropped)
+    failed: tuple[AgentLost, ...] = ()  # as in Tick
     version: int = RUNTIME_VERSION
 
 
@@ -174,11 +175,11 @@ class AgentReport:
     predicted_makespan: int | None
     coordinations: int
     schedule: tuple[ScheduleEntry, ...]
-    found: tuple[tuple[int, int], ...]     # (object id, step found), in the agent's order
+    found: tuple[tuple[int, int], ...]  # (object id, step found), in the agent's order
     warnings: tuple[str, ...]
-    messages: int                          # protocol messages this agent sent
-    view: str = ""                         # what agents must agree on (CCP: schedule, HCP: groups)
-    run: str = ""                          # the world's run id (strays of other runs are dropped)
+    messages: int  # protocol messages this agent sent
+    view: str = ""  # what agents must agree on (CCP: schedule, HCP: groups)
+    run: str = ""  # the world's run id (strays of other runs are dropped)
     version: int = RUNTIME_VERSION
 
 

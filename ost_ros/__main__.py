@@ -1,4 +1,5 @@
 """``python -m ost_ros`` runs the ``ost`` command."""
+
 import sys
 
 from ost_ros.cli import main

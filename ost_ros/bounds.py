@@ -12,6 +12,7 @@ moves only with n_i agents on its cell, one cell per step; every carrier returns
   H_i = the n_i-th smallest |d_i − base_j| (its n_i carriers must get home);
 - work:    N·T ≥ Σ_j L_j + Σ_i n_i·|l_i − d_i|   (sweep and carry steps are disjoint per agent).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass

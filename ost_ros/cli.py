@@ -4,6 +4,7 @@ Every subcommand module exposes ``register(subparsers)``, which adds its parser 
 ``func`` (a callable taking the parsed namespace and returning an exit code). Bad input anywhere
 ends in one line on stderr, ``ost <verb>: error: <what>``, and exit code 2 — never a traceback.
 """
+
 from __future__ import annotations
 
 import argparse

@@ -11,6 +11,7 @@ Readings (see docs/interpretation.md):
 The function is pure and deterministic: every agent runs it on the same inputs and obtains the
 same schedule, which is what lets CCP agree without further communication.
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -43,16 +44,17 @@ class Assignment:
 @dataclass
 class CoordinationResult:
     schedule: list[Assignment]
-    cost: np.ndarray        # CA_j after scheduling, per agent (same order as the input)
-    loc: np.ndarray         # (N, 2) location of each agent when it becomes free
+    cost: np.ndarray  # CA_j after scheduling, per agent (same order as the input)
+    loc: np.ndarray  # (N, 2) location of each agent when it becomes free
     selections: np.ndarray  # (rounds, N): object id each agent selected in each round
 
 
-def _reach(cost: np.ndarray, loc: np.ndarray, where: np.ndarray,
-           period: np.ndarray | None = None) -> np.ndarray:
+def _reach(
+    cost: np.ndarray, loc: np.ndarray, where: np.ndarray, period: np.ndarray | None = None
+) -> np.ndarray:
     """C[i, j] = cost_j + |where_i - loc_j|_1 for objects i (rows) and agents j (columns); for
     agents of period k, when the d moves started at cost_j are done (``arrival``)."""
-    dist = (np.abs(where[:, None, 0] - loc[None, :, 0]) + np.abs(where[:, None, 1] - loc[None, :, 1]))
+    dist = np.abs(where[:, None, 0] - loc[None, :, 0]) + np.abs(where[:, None, 1] - loc[None, :, 1])
     if period is None:
         return cost[None, :] + dist
     return arrival_np(cost[None, :], dist, period[None, :])
@@ -66,8 +68,13 @@ def _carry_times(m_p: int, carry: int, periods: Sequence[int] | np.ndarray) -> t
     return start, arrival(m_p, carry, k)
 
 
-def coordinate(agent_ids: Sequence[int], cost: ArrayLike, loc: ArrayLike,
-               objects: Sequence[ObjectSpec], periods: Sequence[int] | None = None) -> CoordinationResult:
+def coordinate(
+    agent_ids: Sequence[int],
+    cost: ArrayLike,
+    loc: ArrayLike,
+    objects: Sequence[ObjectSpec],
+    periods: Sequence[int] | None = None,
+) -> CoordinationResult:
     """Schedule ``objects`` on the agents whose free time is ``cost`` and position ``loc``.
 
     ``agent_ids`` must be ascending (the tie-break order). Returns the schedule in scheduling
@@ -77,7 +84,7 @@ def coordinate(agent_ids: Sequence[int], cost: ArrayLike, loc: ArrayLike,
     ids = np.asarray(agent_ids, dtype=np.int64)
     if ids.size and np.any(np.diff(ids) <= 0):
         raise ValueError("agent ids must be strictly ascending")
-    ca = np.array(cost, dtype=np.int64).reshape(-1)   # CA_j, updated as objects are scheduled
+    ca = np.array(cost, dtype=np.int64).reshape(-1)  # CA_j, updated as objects are scheduled
     at = np.array(loc, dtype=np.int64).reshape(-1, 2)  # loc_j, likewise
     n = ids.size
     if ca.size != n or at.shape[0] != n:
@@ -99,7 +106,7 @@ def coordinate(agent_ids: Sequence[int], cost: ArrayLike, loc: ArrayLike,
     per = None if periods is None else np.asarray(periods, dtype=np.int64).reshape(-1)
     if per is not None and (per.size != n or np.any(per < 1)):
         raise ValueError("periods must give every agent a period >= 1")
-    reach = _reach(ca, at, where, per)   # (M, N); rows of scheduled objects are set to _FAR
+    reach = _reach(ca, at, where, per)  # (M, N); rows of scheduled objects are set to _FAR
     alive = np.ones(m, dtype=bool)
     schedule: list[Assignment] = []
     for r in range(m):
@@ -120,15 +127,21 @@ def coordinate(agent_ids: Sequence[int], cost: ArrayLike, loc: ArrayLike,
         schedule.append(Assignment(int(obj_ids[p]), tuple(int(a) for a in ids[group]), start, finish))
         alive[p] = False
         # Only the group's columns changed; scheduled rows stay out of every argmin.
-        reach[:, group] = np.where(alive[:, None], _reach(ca[group], at[group], where,
-                                                          None if per is None else per[group]), _FAR)
+        reach[:, group] = np.where(
+            alive[:, None], _reach(ca[group], at[group], where, None if per is None else per[group]), _FAR
+        )
         reach[p] = _FAR
     return CoordinationResult(schedule, ca, at, selections)
 
 
-def order_groups(agent_ids: Sequence[int], cost: ArrayLike, loc: ArrayLike,
-                 objects: Sequence[ObjectSpec], groups: dict[int, tuple[int, ...]],
-                 periods: Sequence[int] | None = None) -> CoordinationResult:
+def order_groups(
+    agent_ids: Sequence[int],
+    cost: ArrayLike,
+    loc: ArrayLike,
+    objects: Sequence[ObjectSpec],
+    groups: dict[int, tuple[int, ...]],
+    periods: Sequence[int] | None = None,
+) -> CoordinationResult:
     """Schedule objects whose groups are already agreed (NCP): Algorithm Coordination's steps 2
     and 3 with the group of each object fixed.
 
@@ -138,7 +151,7 @@ def order_groups(agent_ids: Sequence[int], cost: ArrayLike, loc: ArrayLike,
     so execution cannot deadlock and starts exactly when planned.
     """
     ids = np.asarray(agent_ids, dtype=np.int64)
-    ca = np.array(cost, dtype=np.int64).reshape(-1)   # CA_j, updated as objects are scheduled
+    ca = np.array(cost, dtype=np.int64).reshape(-1)  # CA_j, updated as objects are scheduled
     at = np.array(loc, dtype=np.int64).reshape(-1, 2)  # loc_j, likewise
     index = {int(a): k for k, a in enumerate(ids)}
     objs = sorted(objects, key=lambda o: o.id)
@@ -162,7 +175,7 @@ def order_groups(agent_ids: Sequence[int], cost: ArrayLike, loc: ArrayLike,
     for _ in range(m):
         m_i = np.where(member, reach, -1).max(axis=1)
         m_i[~alive] = _FAR
-        p = int(np.argmin(m_i))           # first minimum: the lower object id
+        p = int(np.argmin(m_i))  # first minimum: the lower object id
         m_p = int(m_i[p])
         group = np.flatnonzero(member[p])
         start, finish = _carry_times(m_p, int(carry[p]), () if per is None else per[group])
@@ -200,8 +213,9 @@ class CoordinationPolicy:
 
     def __post_init__(self) -> None:
         if self.organisation not in ORGANISATIONS:
-            raise ValueError(f"organisation must be one of {', '.join(ORGANISATIONS)}, got "
-                             f"{self.organisation!r}")
+            raise ValueError(
+                f"organisation must be one of {', '.join(ORGANISATIONS)}, got {self.organisation!r}"
+            )
         if self.ci < 1:
             raise ValueError(f"CI must be at least 1, got {self.ci}")
         if self.interval is not None and self.interval < 1:
@@ -249,7 +263,7 @@ class CoordinationPolicy:
             return t + (-(t + 1)) % self.interval
         if self.area_fraction is None:
             return t if unscheduled >= self.ci else None
-        end = int(team.sweep_lengths().max()) + 1   # from here on the fraction stays 1
+        end = int(team.sweep_lengths().max()) + 1  # from here on the fraction stays 1
         if t > end:
             return None
         ts = np.arange(t, end + 1)

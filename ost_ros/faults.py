@@ -5,6 +5,7 @@ A fault is a set of robots failing at a share of the fault-free makespan (the ro
 by a seeded draw). The DDS rows (``--dds``: a real SIGKILL, a lossy network) are added by the
 command, which owns the processes; this module stays ROS-free.
 """
+
 from __future__ import annotations
 
 import random
@@ -53,8 +54,14 @@ class FaultRow:
 
     def cells(self) -> list[str]:
         over = "—" if self.overhead is None else f"{self.overhead:+.1%}"
-        return [self.scenario, self.fault, f"{self.delivered}/{self.total}",
-                "—" if self.makespan is None else str(self.makespan), over, self.note]
+        return [
+            self.scenario,
+            self.fault,
+            f"{self.delivered}/{self.total}",
+            "—" if self.makespan is None else str(self.makespan),
+            over,
+            self.note,
+        ]
 
 
 HEADER = ["scenario", "fault", "delivered / total", "makespan", "overhead vs fault-free", "note"]
@@ -64,15 +71,22 @@ def study_scenarios(quick: bool = False) -> list[tuple[str, Scenario]]:
     """The paper's area and object law; teams of 10 and 20 (seeded)."""
     grid = Grid(100, 40) if quick else Grid(500, 200)
     sizes = [(10, 20, 5)] if quick else [(10, 20, 5), (20, 50, 10)]
-    return [(f"N={n} M={m} {grid.width}×{grid.height} nmax={k}", generate_scenario(n, m, 1, grid, k))
-            for n, m, k in sizes]
+    return [
+        (f"N={n} M={m} {grid.width}×{grid.height} nmax={k}", generate_scenario(n, m, 1, grid, k))
+        for n, m, k in sizes
+    ]
 
 
 def cases_for(scenario: Scenario) -> list[FaultCase]:
     n, nmax = scenario.n_agents, scenario.nmax
-    return [FaultCase(1, 0.25), FaultCase(1, 0.5), FaultCase(1, 0.75),
-            FaultCase(max(2, (n - nmax) // 2), 0.5), FaultCase(n - nmax, 0.5),
-            FaultCase(n - nmax + 1, 0.5)]
+    return [
+        FaultCase(1, 0.25),
+        FaultCase(1, 0.5),
+        FaultCase(1, 0.75),
+        FaultCase(max(2, (n - nmax) // 2), 0.5),
+        FaultCase(n - nmax, 0.5),
+        FaultCase(n - nmax + 1, 0.5),
+    ]
 
 
 def row_of(name: str, fault: str, result: RunResult, baseline: int | None, note: str = "") -> FaultRow:
@@ -87,12 +101,19 @@ def recovering() -> tuple[str, ...]:
     return tuple(n for n, s in protocols.REGISTRY.items() if s.capabilities.recovers_failures)
 
 
-def in_process_rows(quick: bool = False, seed: int = 1, progress: Callable[[], object] | None = None,
-                    names: tuple[str, ...] | None = None) -> list[FaultRow]:
+def in_process_rows(
+    quick: bool = False,
+    seed: int = 1,
+    progress: Callable[[], object] | None = None,
+    names: tuple[str, ...] | None = None,
+) -> list[FaultRow]:
     rows: list[FaultRow] = []
     policy = CoordinationPolicy(ci=1)
-    runs = [(label, scenario, protocol) for label, scenario in study_scenarios(quick)
-            for protocol in (names or recovering())]
+    runs = [
+        (label, scenario, protocol)
+        for label, scenario in study_scenarios(quick)
+        for protocol in (names or recovering())
+    ]
     for label, scenario, protocol in runs:
         name = f"{protocol.upper()}: {label}"
         base = simulate(scenario, protocol, policy, engine="auto")

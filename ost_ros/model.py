@@ -7,6 +7,7 @@ Heterogeneous teams: an agent may have a ``period`` k ≥ 1 — it moves only at
 t mod k = 0 (one cell every k steps; k = 1 is the paper's robot). A group carries an object at
 the steps all its members can move (t mod lcm of their periods = 0).
 """
+
 from __future__ import annotations
 
 import math
@@ -124,8 +125,7 @@ class Subarea:
         return (self.x0, self.y0 + min(1, self.height - 1))
 
     def contains(self, cell: Cell) -> bool:
-        return (self.x0 <= cell[0] < self.x0 + self.width
-                and self.y0 <= cell[1] < self.y0 + self.height)
+        return self.x0 <= cell[0] < self.x0 + self.width and self.y0 <= cell[1] < self.y0 + self.height
 
 
 @dataclass(frozen=True)

@@ -3,6 +3,7 @@
 Every agent uses the same rule, so a carrying group computes the same next cell and moves as
 one, and every planned travel time equals the Manhattan distance.
 """
+
 from __future__ import annotations
 
 Cell = tuple[int, int]

@@ -17,6 +17,7 @@ Groups are tried cheapest first, so good solutions come early. Two consecutive o
 groups are disjoint commute, so only the order with the lower id first is explored (partial-order
 reduction; exact). Exact for small M and N.
 """
+
 from __future__ import annotations
 
 import itertools
@@ -30,11 +31,11 @@ from ost_ros.model import Cell, ObjectSpec, manhattan
 
 @dataclass
 class OptimalResult:
-    cost: int                  # optimal (or best found) makespan, agents home
+    cost: int  # optimal (or best found) makespan, agents home
     plan: list[Assignment]
-    proven: bool               # False if the node budget ran out before the search finished
+    proven: bool  # False if the node budget ran out before the search finished
     nodes: int
-    ccp_cost: int              # the CCP Coordination schedule's makespan on the same problem
+    ccp_cost: int  # the CCP Coordination schedule's makespan on the same problem
 
     @property
     def gap(self) -> float:
@@ -52,9 +53,14 @@ def makespan_of(plan_cost: Sequence[int], loc: Sequence[Cell], bases: Sequence[C
     return max(c + manhattan(at, b) for c, at, b in zip(plan_cost, loc, bases))
 
 
-def optimal_schedule(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequence[Cell],
-                     bases: Sequence[Cell], objects: Sequence[ObjectSpec],
-                     max_nodes: int = 2_000_000) -> OptimalResult:
+def optimal_schedule(
+    agent_ids: Sequence[int],
+    cost: Sequence[int],
+    loc: Sequence[Cell],
+    bases: Sequence[Cell],
+    objects: Sequence[ObjectSpec],
+    max_nodes: int = 2_000_000,
+) -> OptimalResult:
     n = len(agent_ids)
     objs = sorted(objects, key=lambda o: o.id)
     for o in objs:
@@ -76,8 +82,15 @@ def optimal_schedule(agent_ids: Sequence[int], cost: Sequence[int], loc: Sequenc
 class _BranchAndBound:
     """Depth-first over (next object, its group), pruned by a makespan lower bound."""
 
-    def __init__(self, agent_ids: list[int], bases: list[Cell], objs: list[ObjectSpec],
-                 max_nodes: int, best_cost: int, best_plan: list[Assignment]):
+    def __init__(
+        self,
+        agent_ids: list[int],
+        bases: list[Cell],
+        objs: list[ObjectSpec],
+        max_nodes: int,
+        best_cost: int,
+        best_plan: list[Assignment],
+    ):
         self.ids, self.bases, self.objs, self.max_nodes = agent_ids, bases, objs, max_nodes
         self.best_cost, self.best_plan = best_cost, best_plan
         self.carry = [manhattan(o.location, o.destination) for o in objs]
@@ -107,8 +120,9 @@ class _BranchAndBound:
             if not self._branch(i, ca, where, left, prev):
                 return
 
-    def _branch(self, i: int, ca: list[int], where: list[Cell], left: list[int],
-                prev: tuple[int, frozenset]) -> bool:
+    def _branch(
+        self, i: int, ca: list[int], where: list[Cell], left: list[int], prev: tuple[int, frozenset]
+    ) -> bool:
         """Every group for object i next; False once the node budget is spent."""
         o = self.objs[i]
         reach = [c + manhattan(w, o.location) for c, w in zip(ca, where)]
@@ -144,5 +158,4 @@ def post_search_problem(scenario) -> tuple[list[int], list[int], list[Cell], lis
     team = TeamInfo.from_scenario(scenario)
     close = int(team.sweep_lengths().max())
     ends: list[Cell] = [(int(e[0]), int(e[1])) for e in team.sweep_ends()]
-    return (list(team.agent_ids), [close + 1] * team.size, ends, list(team.bases),
-            list(scenario.objects))
+    return (list(team.agent_ids), [close + 1] * team.size, ends, list(team.bases), list(scenario.objects))

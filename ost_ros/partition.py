@@ -1,4 +1,5 @@
 """Equal partition of the working area into one subarea per agent (paper §2.3, §5.1, Table 2)."""
+
 from __future__ import annotations
 
 import math

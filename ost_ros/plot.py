@@ -2,6 +2,7 @@
 
 Used by ``ost sim --plot FILE.png``. Matplotlib with the Agg backend (no display needed).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -62,27 +63,61 @@ def plot_run(scenario: Scenario, result: RunResult, timeline: Timeline, path: st
     fig, (ax_map, ax_t) = plt.subplots(1, 2, figsize=(16, 6), gridspec_kw={"width_ratios": [1.1, 1]})
     g = scenario.grid
     for k, area in enumerate(scenario.subareas):
-        ax_map.add_patch(Rectangle((area.x0 - 0.5, area.y0 - 0.5), area.width, area.height,
-                                   fill=False, lw=0.8, ec="#888888"))
-        ax_map.text(area.x0 + area.width / 2, area.y0 + area.height / 2, f"r{scenario.agents[k].id}",
-                    ha="center", va="center", fontsize=8, color="#888888")
+        ax_map.add_patch(
+            Rectangle(
+                (area.x0 - 0.5, area.y0 - 0.5), area.width, area.height, fill=False, lw=0.8, ec="#888888"
+            )
+        )
+        ax_map.text(
+            area.x0 + area.width / 2,
+            area.y0 + area.height / 2,
+            f"r{scenario.agents[k].id}",
+            ha="center",
+            va="center",
+            fontsize=8,
+            color="#888888",
+        )
     for o in scenario.objects:
-        ax_map.annotate("", xy=o.destination, xytext=o.location,
-                        arrowprops=dict(arrowstyle="->", lw=0.6, color="#3182bd", alpha=0.6))
+        ax_map.annotate(
+            "",
+            xy=o.destination,
+            xytext=o.location,
+            arrowprops=dict(arrowstyle="->", lw=0.6, color="#3182bd", alpha=0.6),
+        )
     if scenario.objects:
-        ax_map.scatter([o.location[0] for o in scenario.objects], [o.location[1] for o in scenario.objects],
-                       s=[12 + 8 * o.required for o in scenario.objects], c="#de2d26", zorder=3,
-                       label="object (size ∝ n_i)")
-        ax_map.scatter([o.destination[0] for o in scenario.objects],
-                       [o.destination[1] for o in scenario.objects], marker="x", s=20, c="#3182bd",
-                       zorder=3, label="destination")
-    ax_map.scatter([a.base[0] for a in scenario.agents], [a.base[1] for a in scenario.agents],
-                   marker="s", s=25, c="k", zorder=4, label="base")
+        ax_map.scatter(
+            [o.location[0] for o in scenario.objects],
+            [o.location[1] for o in scenario.objects],
+            s=[12 + 8 * o.required for o in scenario.objects],
+            c="#de2d26",
+            zorder=3,
+            label="object (size ∝ n_i)",
+        )
+        ax_map.scatter(
+            [o.destination[0] for o in scenario.objects],
+            [o.destination[1] for o in scenario.objects],
+            marker="x",
+            s=20,
+            c="#3182bd",
+            zorder=3,
+            label="destination",
+        )
+    ax_map.scatter(
+        [a.base[0] for a in scenario.agents],
+        [a.base[1] for a in scenario.agents],
+        marker="s",
+        s=25,
+        c="k",
+        zorder=4,
+        label="base",
+    )
     ax_map.set_xlim(-1, g.width)
     ax_map.set_ylim(g.height, -1)  # y grows downward, as rows of the sweep
     ax_map.set_aspect("equal")
-    ax_map.set_title(f"{g.width}×{g.height}, partition {scenario.partition[0]}×{scenario.partition[1]}, "
-                     f"N={scenario.n_agents}, M={scenario.n_objects}")
+    ax_map.set_title(
+        f"{g.width}×{g.height}, partition {scenario.partition[0]}×{scenario.partition[1]}, "
+        f"N={scenario.n_agents}, M={scenario.n_objects}"
+    )
     ax_map.legend(loc="upper right", fontsize=7)
 
     colours = state_colours(result.protocol)
@@ -96,10 +131,18 @@ def plot_run(scenario: Scenario, result: RunResult, timeline: Timeline, path: st
     ax_t.set_xlabel("time step")
     if result.makespan is not None:
         ax_t.axvline(result.makespan, color="k", lw=0.8, ls="--")
-    ax_t.set_title(f"{result.protocol.upper()} ({result.trigger}): makespan {result.makespan}, "
-                   f"last delivery {result.last_delivery}")
-    ax_t.legend(handles=[Patch(color=c, label=s) for s, c in colours.items()], fontsize=7,
-                loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=min(len(colours), 6), frameon=False)
+    ax_t.set_title(
+        f"{result.protocol.upper()} ({result.trigger}): makespan {result.makespan}, "
+        f"last delivery {result.last_delivery}"
+    )
+    ax_t.legend(
+        handles=[Patch(color=c, label=s) for s, c in colours.items()],
+        fontsize=7,
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.1),
+        ncol=min(len(colours), 6),
+        frameon=False,
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

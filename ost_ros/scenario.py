@@ -16,6 +16,7 @@ File format::
 Every problem is reported as :class:`ScenarioError` naming the field, e.g.
 ``objects[3].location: [510, 4] is off the 500x200 grid``.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -39,9 +40,15 @@ class ScenarioError(FieldError):
 # ----------------------------------------------------------------------------- building
 
 
-def build_scenario(grid: Grid, objects: list[ObjectSpec] | tuple[ObjectSpec, ...], *,
-                   n_agents: int | None = None, partition: tuple[int, int] | None = None,
-                   agents: list[AgentSpec] | None = None, nmax: int | None = None) -> Scenario:
+def build_scenario(
+    grid: Grid,
+    objects: list[ObjectSpec] | tuple[ObjectSpec, ...],
+    *,
+    n_agents: int | None = None,
+    partition: tuple[int, int] | None = None,
+    agents: list[AgentSpec] | None = None,
+    nmax: int | None = None,
+) -> Scenario:
     """Assemble and validate a scenario. The team comes from ``agents``, else ``partition``,
     else ``n_agents`` (with the default partition); default bases are the subareas' sweep starts."""
     if grid.width < 1 or grid.height < 1:
@@ -60,15 +67,21 @@ def build_scenario(grid: Grid, objects: list[ObjectSpec] | tuple[ObjectSpec, ...
     if nmax < 1:
         raise ScenarioError(f"nmax: must be at least 1, got {nmax}")
     if nmax > count:
-        raise ScenarioError(f"nmax: {nmax} exceeds the team of {count} agents "
-                            f"(the task cannot be completed)")
+        raise ScenarioError(f"nmax: {nmax} exceeds the team of {count} agents (the task cannot be completed)")
     _check_objects(grid, objects, nmax)
-    return Scenario(grid=grid, partition=(partition[0], partition[1]), agents=tuple(agents),
-                    objects=tuple(objects), nmax=nmax, subareas=areas)
+    return Scenario(
+        grid=grid,
+        partition=(partition[0], partition[1]),
+        agents=tuple(agents),
+        objects=tuple(objects),
+        nmax=nmax,
+        subareas=areas,
+    )
 
 
-def _team_size(agents: list[AgentSpec] | None, partition: tuple[int, int] | None,
-               n_agents: int | None) -> int:
+def _team_size(
+    agents: list[AgentSpec] | None, partition: tuple[int, int] | None, n_agents: int | None
+) -> int:
     if agents is not None:
         count = len(agents)
     elif partition is not None:
@@ -82,8 +95,9 @@ def _team_size(agents: list[AgentSpec] | None, partition: tuple[int, int] | None
     return count
 
 
-def _partition(grid: Grid, count: int, partition: tuple[int, int] | None
-               ) -> tuple[tuple[int, int], tuple[Subarea, ...]]:
+def _partition(
+    grid: Grid, count: int, partition: tuple[int, int] | None
+) -> tuple[tuple[int, int], tuple[Subarea, ...]]:
     """The m×n partition (the default one for ``count`` agents if not given) and its subareas."""
     if partition is None:
         try:
@@ -93,8 +107,10 @@ def _partition(grid: Grid, count: int, partition: tuple[int, int] | None
     if partition[0] < 1 or partition[1] < 1:
         raise ScenarioError(f"partition: sizes must be positive, got {list(partition)}")
     if partition[0] * partition[1] != count:
-        raise ScenarioError(f"partition: {partition[0]}x{partition[1]} has "
-                            f"{partition[0] * partition[1]} subareas for {count} agents")
+        raise ScenarioError(
+            f"partition: {partition[0]}x{partition[1]} has "
+            f"{partition[0] * partition[1]} subareas for {count} agents"
+        )
     try:
         return partition, tuple(subareas(grid, partition))
     except ValueError as exc:
@@ -108,18 +124,22 @@ def _check_agents(grid: Grid, agents: list[AgentSpec]) -> None:
             raise ScenarioError(f"agents[{k}].id: duplicate id {a.id}")
         seen.add(a.id)
         if not grid.contains(a.base):
-            raise ScenarioError(f"agents[{k}].base: {list(a.base)} is off the "
-                                f"{grid.width}x{grid.height} grid")
+            raise ScenarioError(
+                f"agents[{k}].base: {list(a.base)} is off the {grid.width}x{grid.height} grid"
+            )
         if not isinstance(a.period, int) or a.period < 1:
             raise ScenarioError(f"agents[{k}].period: must be an integer >= 1, got {a.period!r}")
         for i, c in enumerate(a.sweep):
             if not grid.contains(c):
-                raise ScenarioError(f"agents[{k}].sweep[{i}]: {list(c)} is off the "
-                                    f"{grid.width}x{grid.height} grid")
+                raise ScenarioError(
+                    f"agents[{k}].sweep[{i}]: {list(c)} is off the {grid.width}x{grid.height} grid"
+                )
         for i, (x0, y0, x1, y1) in enumerate(a.forbidden):
             if not (0 <= x0 <= x1 < grid.width and 0 <= y0 <= y1 < grid.height):
-                raise ScenarioError(f"agents[{k}].forbidden[{i}]: {[x0, y0, x1, y1]} must satisfy "
-                                    f"0 <= x0 <= x1 < {grid.width} and 0 <= y0 <= y1 < {grid.height}")
+                raise ScenarioError(
+                    f"agents[{k}].forbidden[{i}]: {[x0, y0, x1, y1]} must satisfy "
+                    f"0 <= x0 <= x1 < {grid.width} and 0 <= y0 <= y1 < {grid.height}"
+                )
 
 
 def _check_objects(grid: Grid, objects: list[ObjectSpec], nmax: int) -> None:
@@ -132,8 +152,9 @@ def _check_objects(grid: Grid, objects: list[ObjectSpec], nmax: int) -> None:
         for name in ("location", "destination"):
             cell = getattr(o, name)
             if not grid.contains(cell):
-                raise ScenarioError(f"{where}.{name}: {list(cell)} is off the "
-                                    f"{grid.width}x{grid.height} grid")
+                raise ScenarioError(
+                    f"{where}.{name}: {list(cell)} is off the {grid.width}x{grid.height} grid"
+                )
         if o.location == o.destination:
             raise ScenarioError(f"{where}.destination: equals its location {list(o.location)}")
         if not 1 <= o.required <= nmax:
@@ -149,7 +170,7 @@ def _check_coverage(grid: Grid, agents: list[AgentSpec], areas) -> None:
     missing = [k for k, a in enumerate(agents) if not a.sweep]
     if missing:
         raise ScenarioError(f"agents[{missing[0]}].sweep: missing (give every agent a sweep, or none)")
-    seen = np.zeros((grid.height + 2, grid.width + 2), dtype=bool)   # padded: 3x3 at the edges
+    seen = np.zeros((grid.height + 2, grid.width + 2), dtype=bool)  # padded: 3x3 at the edges
     for area, a in zip(areas, agents):
         cells = np.array(route(agent_plan(area, a.base, a.sweep)), dtype=np.int64).reshape(-1, 2)
         for dx in (0, 1, 2):
@@ -158,14 +179,12 @@ def _check_coverage(grid: Grid, agents: list[AgentSpec], areas) -> None:
     gap = np.argwhere(~seen[1:-1, 1:-1])
     if len(gap):
         y, x = gap[0]
-        raise ScenarioError(f"agents: cell ({x}, {y}) is sensed by no agent's sweep "
-                            f"({len(gap)} such cells)")
+        raise ScenarioError(f"agents: cell ({x}, {y}) is sensed by no agent's sweep ({len(gap)} such cells)")
 
 
 def with_team(scenario: Scenario, n_agents: int) -> Scenario:
     """The same objects with a new team of ``n_agents`` (default partition and bases)."""
-    return build_scenario(scenario.grid, scenario.objects, n_agents=n_agents,
-                          nmax=scenario.nmax)
+    return build_scenario(scenario.grid, scenario.objects, n_agents=n_agents, nmax=scenario.nmax)
 
 
 # ----------------------------------------------------------------------------- parsing
@@ -186,8 +205,10 @@ def _scenario_from_dict(data: Any) -> Scenario:
         raise ScenarioError("scenario: the file is empty")
     data = v.mapping(data, "scenario", TOP_KEYS, ("objects",))
     g = v.mapping(data.get("grid", {}), "grid", ("width", "height"))
-    grid = Grid(v.integer(g.get("width", Grid.width), "grid.width", 1),
-                v.integer(g.get("height", Grid.height), "grid.height", 1))
+    grid = Grid(
+        v.integer(g.get("width", Grid.width), "grid.width", 1),
+        v.integer(g.get("height", Grid.height), "grid.height", 1),
+    )
     partition = None
     if "partition" in data:
         p = data["partition"]
@@ -202,8 +223,10 @@ def _scenario_from_dict(data: Any) -> Scenario:
             aid = v.integer(a["id"], f"agents[{k}].id", 0)
             base = v.cell(a["base"], f"agents[{k}].base") if "base" in a else None
             period = v.integer(a["period"], f"agents[{k}].period", 1) if "period" in a else 1
-            sweep = tuple(v.cell(c, f"agents[{k}].sweep[{i}]")
-                          for i, c in enumerate(v.listing(a.get("sweep", []), f"agents[{k}].sweep")))
+            sweep = tuple(
+                v.cell(c, f"agents[{k}].sweep[{i}]")
+                for i, c in enumerate(v.listing(a.get("sweep", []), f"agents[{k}].sweep"))
+            )
             zones = []
             for i, z in enumerate(v.listing(a.get("forbidden", []), f"agents[{k}].forbidden")):
                 where = f"agents[{k}].forbidden[{i}]"
@@ -213,12 +236,20 @@ def _scenario_from_dict(data: Any) -> Scenario:
             agents.append((aid, base, period, sweep, tuple(zones)))
     objects = []
     for k, o in enumerate(v.listing(data["objects"], "objects")):
-        o = v.mapping(o, f"objects[{k}]", ("id", "location", "destination", "required"),
-                     ("id", "location", "destination", "required"))
-        objects.append(ObjectSpec(v.integer(o["id"], f"objects[{k}].id", 0),
-                                  v.cell(o["location"], f"objects[{k}].location"),
-                                  v.cell(o["destination"], f"objects[{k}].destination"),
-                                  v.integer(o["required"], f"objects[{k}].required", 1)))
+        o = v.mapping(
+            o,
+            f"objects[{k}]",
+            ("id", "location", "destination", "required"),
+            ("id", "location", "destination", "required"),
+        )
+        objects.append(
+            ObjectSpec(
+                v.integer(o["id"], f"objects[{k}].id", 0),
+                v.cell(o["location"], f"objects[{k}].location"),
+                v.cell(o["destination"], f"objects[{k}].destination"),
+                v.integer(o["required"], f"objects[{k}].required", 1),
+            )
+        )
     nmax = v.integer(data["nmax"], "nmax", 1) if "nmax" in data else None
     if agents is not None and any(a[1] is None for a in agents):
         # Agents without a base get their subarea's start cell: needs the partition first.
@@ -261,12 +292,25 @@ def scenario_to_dict(scenario: Scenario) -> dict:
     return {
         "grid": {"width": scenario.grid.width, "height": scenario.grid.height},
         "partition": list(scenario.partition),
-        "agents": [{"id": a.id, "base": list(a.base), **({"period": a.period} if a.period != 1 else {}),
-                    **({"forbidden": [list(z) for z in a.forbidden]} if a.forbidden else {}),
-                    **({"sweep": [list(c) for c in a.sweep]} if a.sweep else {})}
-                   for a in scenario.agents],
-        "objects": [{"id": o.id, "location": list(o.location), "destination": list(o.destination),
-                     "required": o.required} for o in scenario.objects],
+        "agents": [
+            {
+                "id": a.id,
+                "base": list(a.base),
+                **({"period": a.period} if a.period != 1 else {}),
+                **({"forbidden": [list(z) for z in a.forbidden]} if a.forbidden else {}),
+                **({"sweep": [list(c) for c in a.sweep]} if a.sweep else {}),
+            }
+            for a in scenario.agents
+        ],
+        "objects": [
+            {
+                "id": o.id,
+                "location": list(o.location),
+                "destination": list(o.destination),
+                "required": o.required,
+            }
+            for o in scenario.objects
+        ],
         "nmax": scenario.nmax,
     }
 
@@ -289,15 +333,17 @@ def dump_scenario(scenario: Scenario) -> str:
 # ----------------------------------------------------------------------------- generation
 
 
-def generate_objects(n_objects: int, seed: int, grid: Grid = Grid(),
-                     nmax: int = DEFAULT_NMAX) -> list[ObjectSpec]:
+def generate_objects(
+    n_objects: int, seed: int, grid: Grid = Grid(), nmax: int = DEFAULT_NMAX
+) -> list[ObjectSpec]:
     """The paper's random object set: distinct uniform locations, uniform destinations (never the
     object's own cell), n_i uniform in 1..nmax; sorted by (x, y) of location, id = that rank."""
     if n_objects < 0:
         raise ScenarioError(f"objects: count must be non-negative, got {n_objects}")
     if n_objects > grid.cells:
-        raise ScenarioError(f"objects: {n_objects} distinct locations do not fit a "
-                            f"{grid.width}x{grid.height} grid")
+        raise ScenarioError(
+            f"objects: {n_objects} distinct locations do not fit a {grid.width}x{grid.height} grid"
+        )
     if nmax < 1:
         raise ScenarioError(f"nmax: must be at least 1, got {nmax}")
     if grid.cells < 2 and n_objects:
@@ -310,13 +356,20 @@ def generate_objects(n_objects: int, seed: int, grid: Grid = Grid(),
     req = rng.integers(1, nmax + 1, size=n_objects)
     lx, ly = loc % grid.width, loc // grid.width
     order = np.lexsort((ly, lx))  # sort by x, then y
-    return [ObjectSpec(rank, (int(lx[i]), int(ly[i])),
-                       (int(dest[i] % grid.width), int(dest[i] // grid.width)), int(req[i]))
-            for rank, i in enumerate(order)]
+    return [
+        ObjectSpec(
+            rank,
+            (int(lx[i]), int(ly[i])),
+            (int(dest[i] % grid.width), int(dest[i] // grid.width)),
+            int(req[i]),
+        )
+        for rank, i in enumerate(order)
+    ]
 
 
-def generate_scenario(n_agents: int, n_objects: int, seed: int, grid: Grid = Grid(),
-                      nmax: int = DEFAULT_NMAX) -> Scenario:
+def generate_scenario(
+    n_agents: int, n_objects: int, seed: int, grid: Grid = Grid(), nmax: int = DEFAULT_NMAX
+) -> Scenario:
     """A random scenario as in the paper's §5.1; the objects depend on the seed only, not on N."""
     objects = generate_objects(n_objects, seed, grid, nmax)
     return build_scenario(grid, objects, n_agents=n_agents, nmax=nmax)

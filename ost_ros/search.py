@@ -5,6 +5,7 @@ y0..y0+2. Passes run every 3 rows, alternating direction (left→right first); t
 clamped to the subarea's last row. An agent whose base is not its sweep start first walks there
 (sensing on the way).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass

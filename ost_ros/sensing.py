@@ -4,6 +4,7 @@ makespan bound use it; the world senses step by step).
 The sensor covers the 3×3 block around the agent; an agent on its sweep stands on ``path[i]``
 once it has made i moves.
 """
+
 from __future__ import annotations
 
 from functools import lru_cache
@@ -16,8 +17,11 @@ from ost_ros.search import agent_plan, route
 
 def sweep_paths(scenario: Scenario) -> list[np.ndarray]:
     """Each agent's cell-by-cell search path ((L_j + 1) × 2): it stands on row t at time t."""
-    return list(_paths(scenario.subareas, tuple(a.base for a in scenario.agents),
-                       tuple(a.sweep for a in scenario.agents)))
+    return list(
+        _paths(
+            scenario.subareas, tuple(a.base for a in scenario.agents), tuple(a.sweep for a in scenario.agents)
+        )
+    )
 
 
 @lru_cache(maxsize=8)
@@ -44,5 +48,3 @@ def first_sensing(path: np.ndarray, cells: np.ndarray) -> np.ndarray:
         if cover[hit]:
             out[k] = hit
     return out
-
-

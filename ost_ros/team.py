@@ -4,6 +4,7 @@ This is configuration, not ground truth about objects: agents learn objects only
 messages. From it every agent can compute when and where each peer's search ends, which CCP
 needs for a peer's cost CA_j while that peer is still searching.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -17,12 +18,12 @@ from ost_ros.search import SweepSummary, agent_plan, route
 @dataclass(frozen=True)
 class TeamInfo:
     grid: Grid
-    agent_ids: tuple[int, ...]          # ascending: the tie-break order of the protocol
+    agent_ids: tuple[int, ...]  # ascending: the tie-break order of the protocol
     bases: tuple[Cell, ...]
     areas: tuple[Subarea, ...]
     sweeps: tuple[SweepSummary, ...]
-    periods: tuple[int, ...] = ()       # each agent moves every k steps (empty: all 1)
-    plans: tuple[tuple[Cell, ...], ...] = ()   # each agent's search waypoints (from its base)
+    periods: tuple[int, ...] = ()  # each agent moves every k steps (empty: all 1)
+    plans: tuple[tuple[Cell, ...], ...] = ()  # each agent's search waypoints (from its base)
 
     @classmethod
     def from_scenario(cls, scenario: Scenario) -> TeamInfo:
@@ -32,11 +33,13 @@ class TeamInfo:
             agent_ids=tuple(a.id for a in agents),
             bases=tuple(a.base for a in agents),
             areas=scenario.subareas,
-            sweeps=tuple(SweepSummary.of(area, a.base, a.sweep)
-                         for area, a in zip(scenario.subareas, agents)),
+            sweeps=tuple(
+                SweepSummary.of(area, a.base, a.sweep) for area, a in zip(scenario.subareas, agents)
+            ),
             periods=tuple(a.period for a in agents),
-            plans=tuple(tuple(agent_plan(area, a.base, a.sweep))
-                        for area, a in zip(scenario.subareas, agents)),
+            plans=tuple(
+                tuple(agent_plan(area, a.base, a.sweep)) for area, a in zip(scenario.subareas, agents)
+            ),
         )
 
     def search_path(self, k: int) -> list[Cell]:
@@ -83,5 +86,5 @@ class TeamInfo:
         moves = self.sweep_moves()
         total = int(moves.sum())
         k = self.period_array()
-        done = -(-max(t, 0) // k)          # movable steps 0, k, 2k, ... before t
+        done = -(-max(t, 0) // k)  # movable steps 0, k, 2k, ... before t
         return 1.0 if total == 0 else float(np.minimum(moves, done).sum()) / total

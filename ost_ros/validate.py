@@ -1,4 +1,5 @@
 """Strict checks for parsed YAML/JSON documents; every failure names the field it concerns."""
+
 from __future__ import annotations
 
 from typing import Any

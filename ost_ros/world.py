@@ -13,6 +13,7 @@ A failed agent (``fail``) acts no more: it stays where it stopped, and an object
 stays where its group held it. The run is then done when every object that the survivors can
 still carry (``required`` ≤ survivors) is delivered and every survivor is home.
 """
+
 from __future__ import annotations
 
 from collections import defaultdict
@@ -41,18 +42,18 @@ class World:
     scenario: Scenario
     t: int = 0
     rejections: list[str] = field(default_factory=list)
-    failed: dict[int, int] = field(default_factory=dict)   # agent -> step it failed in
+    failed: dict[int, int] = field(default_factory=dict)  # agent -> step it failed in
 
     def __post_init__(self) -> None:
         self.positions: dict[int, Cell] = {a.id: a.base for a in self.scenario.agents}
         self.periods: dict[int, int] = {a.id: a.period for a in self.scenario.agents}
         self.bases: dict[int, Cell] = dict(self.positions)
         self.objects: dict[int, _Obj] = {o.id: _Obj(o, o.location) for o in self.scenario.objects}
-        self._at: dict[Cell, set[int]] = defaultdict(set)   # undelivered objects by cell
+        self._at: dict[Cell, set[int]] = defaultdict(set)  # undelivered objects by cell
         for o in self.objects.values():
             self._at[o.at].add(o.spec.id)
         self.records: dict[int, AgentRecord] = {a.id: AgentRecord(a.id) for a in self.scenario.agents}
-        self.carrying: dict[int, int] = {}   # agent -> object its last action carried (or held)
+        self.carrying: dict[int, int] = {}  # agent -> object its last action carried (or held)
 
     # ------------------------------------------------------------------ sensing
 
@@ -122,7 +123,7 @@ class World:
         """An agent reporting FINISH at its base is done; any other state calls it back to work."""
         rec = self.records[act.agent]
         if act.state != FINISH_STATE and rec.finished is not None:
-            rec.finished = None   # called back to work (a team mate failed)
+            rec.finished = None  # called back to work (a team mate failed)
         if act.state == FINISH_STATE and rec.finished is None:
             pos = self.positions[act.agent]
             if pos == self.bases[act.agent]:
@@ -167,7 +168,8 @@ class World:
                 self._reject(act, f"carriers of object {oid} pull in {len(directions)} directions")
             return
         if len(here) < obj.spec.required or not can_move(
-                self.t, group_period([self.periods[a.agent] for a in here])):
+            self.t, group_period([self.periods[a.agent] for a in here])
+        ):
             # Not an error: the agents hold the object and wait for the rest of the group (or
             # for a step in which the slowest of them can move).
             for act in here:
@@ -177,7 +179,7 @@ class World:
         carriers = tuple(sorted(a.agent for a in here))
         if obj.start is None:
             obj.start = self.t
-        if obj.carriers != carriers:   # first lift, or picked up again after a carrier failed
+        if obj.carriers != carriers:  # first lift, or picked up again after a carrier failed
             obj.carriers = carriers
         self._at[obj.at].discard(oid)
         obj.at = target
@@ -221,8 +223,7 @@ class World:
         if holding is not None or rec.finished is None:
             rec.idle += steps
 
-    def bulk_carry(self, oid: int, carriers: list[int], to: Cell, steps: int, moves: int,
-                   first: int) -> None:
+    def bulk_carry(self, oid: int, carriers: list[int], to: Cell, steps: int, moves: int, first: int) -> None:
         """``steps`` steps of a complete group carrying object ``oid``: ``moves`` moves, the first
         in step ``first``, end at ``to`` (delivered there if it is the destination); in the other
         steps the group holds it."""
@@ -273,22 +274,25 @@ class World:
 
     def undeliverable(self) -> list[int]:
         """Undelivered objects needing more robots than survive."""
-        return sorted(i for i, o in self.objects.items()
-                      if o.delivered is None and o.spec.required > self.survivors)
+        return sorted(
+            i for i, o in self.objects.items() if o.delivered is None and o.spec.required > self.survivors
+        )
 
     # ------------------------------------------------------------------ ending
 
     @property
     def done(self) -> bool:
         n = self.survivors
-        return (all(o.delivered is not None or o.spec.required > n for o in self.objects.values())
-                and all(r.finished is not None for i, r in self.records.items()
-                        if i not in self.failed))
+        return all(o.delivered is not None or o.spec.required > n for o in self.objects.values()) and all(
+            r.finished is not None for i, r in self.records.items() if i not in self.failed
+        )
 
     def result(self, **extra: Any) -> RunResult:
         agents = [self.records[a.id] for a in self.scenario.agents]
-        objects = [ObjectRecord(o.spec.id, o.carriers, o.start, o.delivered)
-                   for o in sorted(self.objects.values(), key=lambda o: o.spec.id)]
+        objects = [
+            ObjectRecord(o.spec.id, o.carriers, o.start, o.delivered)
+            for o in sorted(self.objects.values(), key=lambda o: o.spec.id)
+        ]
         finished = [r.finished for r in agents if r.id not in self.failed and r.finished is not None]
         delivered = [o.delivered for o in objects]
         done = self.done
@@ -306,7 +310,9 @@ class World:
         )
         if done and left:
             need = max(self.objects[i].spec.required for i in left)
-            result.error = (f"{len(left)} of {len(objects)} objects cannot be delivered: objects "
-                            f"{left} need up to {need} robots and {self.survivors} survive (agents "
-                            f"{sorted(self.failed)} failed)")
+            result.error = (
+                f"{len(left)} of {len(objects)} objects cannot be delivered: objects "
+                f"{left} need up to {need} robots and {self.survivors} survive (agents "
+                f"{sorted(self.failed)} failed)"
+            )
         return result

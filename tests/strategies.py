@@ -1,5 +1,6 @@
 """Hypothesis strategies shared by the core's property tests: random small scenarios (bases
 anywhere or at the sweep starts) and coordination policies of every trigger kind."""
+
 from hypothesis import strategies as st
 
 from ost_ros.coordination import CoordinationPolicy
@@ -19,12 +20,12 @@ def scenarios(draw, width=(4, 24), height=(3, 12), agents=(1, 5), objects=(0, 7)
     objs = generate_objects(count, draw(st.integers(0, 10**6)), Grid(w, h), nmax)
     bases = None
     if draw(st.booleans()):  # bases anywhere, not only at the sweep starts
-        bases = [AgentSpec(i, (draw(st.integers(0, w - 1)), draw(st.integers(0, h - 1))))
-                 for i in range(n)]
+        bases = [AgentSpec(i, (draw(st.integers(0, w - 1)), draw(st.integers(0, h - 1)))) for i in range(n)]
     return build_scenario(Grid(w, h), objs, partition=(m, k), agents=bases, nmax=nmax)
 
 
 policies = st.one_of(
     st.builds(CoordinationPolicy, ci=st.integers(1, 9)),
     st.builds(CoordinationPolicy, interval=st.integers(1, 40)),
-    st.builds(CoordinationPolicy, area_fraction=st.sampled_from([0.1, 0.25, 0.5, 1.0])))
+    st.builds(CoordinationPolicy, area_fraction=st.sampled_from([0.1, 0.25, 0.5, 1.0])),
+)

@@ -1,5 +1,6 @@
 """The layout's promises: no import cycles anywhere in the product (an import inside a function
 counts: it only hides the cycle), and the protocol core runs without ROS."""
+
 import ast
 import subprocess
 import sys
@@ -38,7 +39,7 @@ def import_graph() -> dict[str, set[str]]:
                 # `from pkg import sub` imports the submodule when there is one
                 targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in mods else base for a in node.names]
             if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in mods:
-                targets = [node.value]   # a module imported by name (importlib)
+                targets = [node.value]  # a module imported by name (importlib)
             for t in targets:
                 while t and t not in mods:
                     t = t.rpartition(".")[0]
@@ -90,12 +91,14 @@ def test_no_import_cycles():
 def test_the_core_imports_no_ros():
     graph = import_graph()
     core = [m for m in graph if m.startswith(("ost_ros", "ost_msgs_py"))]
-    code = ("import sys, importlib\n"
-            f"for m in {core!r}:\n"
-            "    if m.startswith('ost_ros.commands.ros') or m.endswith('__main__'):\n"
-            "        continue\n"
-            "    importlib.import_module(m)\n"
-            "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosidl_runtime_py', 'std_msgs'))\n"
-            "print(bad)\n")
+    code = (
+        "import sys, importlib\n"
+        f"for m in {core!r}:\n"
+        "    if m.startswith('ost_ros.commands.ros') or m.endswith('__main__'):\n"
+        "        continue\n"
+        "    importlib.import_module(m)\n"
+        "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosidl_runtime_py', 'std_msgs'))\n"
+        "print(bad)\n"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, check=True)
     assert out.stdout.strip() == "[]"

@@ -2,6 +2,7 @@
 recorded one — results of every protocol, engine, organisation and failure mode, and both
 papers' reproduction tables. A change that means to alter behaviour re-records the corpus
 (``tests/corpus/record.py``) and says why in its commit."""
+
 import json
 
 import pytest
@@ -17,7 +18,7 @@ COMMANDS = dict(commands())
 def scratch(tmp_path_factory):
     d = tmp_path_factory.mktemp("corpus")
     prepare(d)
-    for _, argv in generate_commands():   # every other command reads these scenarios
+    for _, argv in generate_commands():  # every other command reads these scenarios
         assert run_command(argv, d)[0] == 0
     return d
 
@@ -31,8 +32,9 @@ def test_corpus_is_large_enough():
 def test_output_is_unchanged(name, scratch):
     code, data = run_command(COMMANDS[name], scratch)
     want = RECORDED[name]
-    assert (code, len(data), digest(data)) == (want["exit"], want["bytes"], want["sha256"]), \
+    assert (code, len(data), digest(data)) == (want["exit"], want["bytes"], want["sha256"]), (
         f"ost {' '.join(COMMANDS[name])}: output changed"
+    )
 
 
 @pytest.mark.parametrize("name, argv", REPRODUCTIONS)

@@ -1,5 +1,6 @@
 """``/ost/markers``: the grid, agents, objects and their destinations as a MarkerArray (RViz,
 Foxglove). One cell = 1 m in frame ``map``; z = 0."""
+
 from __future__ import annotations
 
 from builtin_interfaces.msg import Time
@@ -30,8 +31,13 @@ def _pt(x: float, y: float) -> Point:
 def world_markers(world: World, stamp: Time) -> MarkerArray:
     g = world.scenario.grid
     grid = _marker(0, "grid", Marker.LINE_STRIP, stamp, 0.2, (0.6, 0.6, 0.6, 1.0))
-    grid.points = [_pt(-0.5, -0.5), _pt(g.width - 0.5, -0.5), _pt(g.width - 0.5, g.height - 0.5),
-                   _pt(-0.5, g.height - 0.5), _pt(-0.5, -0.5)]
+    grid.points = [
+        _pt(-0.5, -0.5),
+        _pt(g.width - 0.5, -0.5),
+        _pt(g.width - 0.5, g.height - 0.5),
+        _pt(-0.5, g.height - 0.5),
+        _pt(-0.5, -0.5),
+    ]
     agents = _marker(1, "agents", Marker.SPHERE_LIST, stamp, 1.0, (0.1, 0.4, 1.0, 1.0))
     agents.points = [_pt(*world.positions[a.id]) for a in world.scenario.agents]
     live = [o for o in world.objects.values() if o.delivered is None]

@@ -1,7 +1,8 @@
 """Print a result file (the JSON of ``ost sim --json``) as ``ost sim`` prints it.
 
-    python -m world_node.report RESULT.json [--json]
+python -m world_node.report RESULT.json [--json]
 """
+
 from __future__ import annotations
 
 import json
@@ -24,8 +25,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             print(RunResult.from_dict(data).summary())
     except (OSError, ValueError, KeyError, TypeError) as exc:
-        print(f"report: error: {argv[0]}: cannot read the result ({exc.__class__.__name__})",
-              file=sys.stderr)
+        print(f"report: error: {argv[0]}: cannot read the result ({exc.__class__.__name__})", file=sys.stderr)
         return 2
     return 0 if data.get("completed") else 1
 

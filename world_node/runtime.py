@@ -16,6 +16,7 @@ the step completes with the survivors, and every later tick tells everyone (``Ti
 That is the simulator's ``failures={agent: step}`` run. A step with a failure is never skipped
 over: the notice is news to the agents, like a broadcast.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -35,25 +36,25 @@ class WorldRuntime:
     scenario: Scenario
     max_steps: int | None = None
     skipping: bool = True
-    run: str = ""                # the run id stamped on every message of the run
+    run: str = ""  # the run id stamped on every message of the run
     world: World = field(init=False)
-    messages: int = 0            # protocol messages the agents broadcast (as counted by ost sim)
-    round_trips: int = 0         # steps run in lockstep (one Tick/Acted exchange each)
-    skipped: int = 0             # steps executed from plans
+    messages: int = 0  # protocol messages the agents broadcast (as counted by ost sim)
+    round_trips: int = 0  # steps run in lockstep (one Tick/Acted exchange each)
+    skipped: int = 0  # steps executed from plans
     ended: RunEnd | None = None
     _acted: dict[int, Acted] = field(default_factory=dict)
-    _answered: dict[int, Acted] = field(default_factory=dict)   # each agent's latest answer
+    _answered: dict[int, Acted] = field(default_factory=dict)  # each agent's latest answer
     _reports: dict[int, AgentReport] = field(default_factory=dict)
-    failed: dict[int, int] = field(default_factory=dict)   # agent -> step it failed in
-    protocol: str = "ccp"        # the agents' protocol (whether it recovers from a failure)
-    organisation: str = "distributed"   # who coordinates (the coordinator does not recover)
-    aborted: str | None = None   # why the run was ended early (a failure the protocol cannot take)
-    _gone: set[int] = field(default_factory=set)   # lost after the run ended (no report coming)
-    _notices: dict[int, AgentLost] = field(default_factory=dict)   # what every later tick says
+    failed: dict[int, int] = field(default_factory=dict)  # agent -> step it failed in
+    protocol: str = "ccp"  # the agents' protocol (whether it recovers from a failure)
+    organisation: str = "distributed"  # who coordinates (the coordinator does not recover)
+    aborted: str | None = None  # why the run was ended early (a failure the protocol cannot take)
+    _gone: set[int] = field(default_factory=set)  # lost after the run ended (no report coming)
+    _notices: dict[int, AgentLost] = field(default_factory=dict)  # what every later tick says
 
     def __post_init__(self) -> None:
         self.world = World(self.scenario)
-        self.ids = tuple(a.id for a in self.scenario.agents)   # ascending, as in the simulator
+        self.ids = tuple(a.id for a in self.scenario.agents)  # ascending, as in the simulator
         self.limit = self.max_steps if self.max_steps is not None else step_limit(self.scenario)
 
     @property
@@ -68,20 +69,21 @@ class WorldRuntime:
         if agent not in self.ids or agent in self.failed or agent in self._gone:
             return None
         if self.ended is not None:
-            self._gone.add(agent)   # the run is over: it just will not report
+            self._gone.add(agent)  # the run is over: it just will not report
             return None
         self.failed[agent] = self.world.t
         self._notices[agent] = AgentLost(agent, self.world.t, self.world.dropped_by(agent))
         self._acted.pop(agent, None)
         self.world.fail(agent)
         try:
-            protocols.check(self.protocol, policy=CoordinationPolicy(organisation=self.organisation),
-                            failures=True)
+            protocols.check(
+                self.protocol, policy=CoordinationPolicy(organisation=self.organisation), failures=True
+            )
         except protocols.ProtocolError as exc:
             self.aborted = f"agent {agent} failed in step {self.world.t}; {exc}"
             self.ended = RunEnd(self.world.t, self.world.t - 1, False, (), self.run, self._failed())
             return self.ended
-        if self.max_steps is None:   # survivors may need longer than the fault-free bound
+        if self.max_steps is None:  # survivors may need longer than the fault-free bound
             self.limit = max(self.limit, step_limit(self.scenario, len(self.failed)))
         return self.advance() if self.step_complete else None
 
@@ -100,13 +102,16 @@ class WorldRuntime:
         if a.agent not in self.ids:
             raise ProtocolViolation(f"action from agent {a.agent}, not in the team")
         if a.agent in self.failed:
-            raise ProtocolViolation(f"action of agent {a.agent}, declared failed in step "
-                                    f"{self.failed[a.agent]}")
+            raise ProtocolViolation(
+                f"action of agent {a.agent}, declared failed in step {self.failed[a.agent]}"
+            )
         if a.t < self.world.t and self._answered.get(a.agent) == acted:
             return  # a re-sent answer that arrived after the step was done
         if self.ended is not None or a.t != self.world.t:
-            raise ProtocolViolation(f"action of agent {a.agent} for step {a.t}, world is at step "
-                                    f"{self.world.t}" + (" (run ended)" if self.ended else ""))
+            raise ProtocolViolation(
+                f"action of agent {a.agent} for step {a.t}, world is at step "
+                f"{self.world.t}" + (" (run ended)" if self.ended else "")
+            )
         if a.agent in self._acted:
             if self._acted[a.agent] == acted:
                 return  # the same answer again (the agent re-sent it)
@@ -132,7 +137,7 @@ class WorldRuntime:
         self.messages += sum(x.sent for x in acted)
         self.world.apply([x.action for x in acted])
         self.round_trips += 1
-        news = last in self.failed.values()   # a failure notice: the agents must hear it
+        news = last in self.failed.values()  # a failure notice: the agents must hear it
         if self.skipping and not peers and not news and acted:
             self._skip(live, [x.plan for x in acted])
         return self._next(last, peers)
@@ -182,23 +187,29 @@ class WorldRuntime:
         """The same record as ``ost_ros.simulator.finish_result``, from the agents' reports
         (the survivors': a failed agent reports nothing)."""
         reports = [self._reports[i] for i in self.live if i in self._reports]
-        if self.aborted or not reports:   # ended early: the world's truth is all there is
+        if self.aborted or not reports:  # ended early: the world's truth is all there is
             result = self.world.result(protocol=self.protocol, messages=self.messages)
             result.error = self.aborted or "every agent failed"
             return result
         first = reports[0]
         agreement = all(r.view == first.view for r in reports)
         found: dict[int, int] = {}
-        for r in reports:   # CCP: everyone knows every find; HCP: each owner knows its own
+        for r in reports:  # CCP: everyone knows every find; HCP: each owner knows its own
             for oid, t in r.found:
                 found[oid] = min(t, found.get(oid, t))
         warnings = [f"agent {r.agent}: {w}" for r in reports for w in r.warnings]
         schedule = [Assignment(e.object, tuple(e.agents), e.start, e.finish) for e in first.schedule]
-        result = self.world.result(protocol=first.protocol, trigger=first.trigger,
-                                   predicted_makespan=first.predicted_makespan,
-                                   coordinations=first.coordinations, messages=self.messages,
-                                   agreement=agreement, warnings=warnings, found=dict(sorted(found.items())),
-                                   schedule=schedule)
+        result = self.world.result(
+            protocol=first.protocol,
+            trigger=first.trigger,
+            predicted_makespan=first.predicted_makespan,
+            coordinations=first.coordinations,
+            messages=self.messages,
+            agreement=agreement,
+            warnings=warnings,
+            found=dict(sorted(found.items())),
+            schedule=schedule,
+        )
         if not result.completed and result.error is None:
             result.error = f"not finished after {self.world.t} steps (deadlock or step limit)"
         return result

@@ -18,6 +18,7 @@ the result on /ost/result (transient local). Invalid or out-of-turn messages are
 throttled warning naming the sender; illegal actions are rejected by ``World.apply`` with a
 reason that goes into the result.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -55,15 +56,34 @@ STALL_S = 5.0
 class WorldNode(Node):
     def __init__(self):
         super().__init__(tp.WORLD_NODE, namespace=tp.NAMESPACE)
-        for name, default in (("scenario", ""), ("agents", 0), ("max_steps", 0), ("result_file", ""),
-                              ("event_skipping", True), ("marker_every", 1), ("exit_when_done", True),
-                              ("checkpoint_file", ""), ("resume", False),
-                              ("failure_timeout", tp.FAILURE_TIMEOUT_S)):
+        for name, default in (
+            ("scenario", ""),
+            ("agents", 0),
+            ("max_steps", 0),
+            ("result_file", ""),
+            ("event_skipping", True),
+            ("marker_every", 1),
+            ("exit_when_done", True),
+            ("checkpoint_file", ""),
+            ("resume", False),
+            ("failure_timeout", tp.FAILURE_TIMEOUT_S),
+        ):
             self.declare_parameter(name, default)
-        p = {n: self.get_parameter(n).value for n in ("scenario", "agents", "max_steps", "result_file",
-                                                       "event_skipping", "marker_every",
-                                                       "exit_when_done", "checkpoint_file", "resume",
-                                                       "failure_timeout")}
+        p = {
+            n: self.get_parameter(n).value
+            for n in (
+                "scenario",
+                "agents",
+                "max_steps",
+                "result_file",
+                "event_skipping",
+                "marker_every",
+                "exit_when_done",
+                "checkpoint_file",
+                "resume",
+                "failure_timeout",
+            )
+        }
         if not p["scenario"]:
             raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
         for name in ("agents", "max_steps", "marker_every", "failure_timeout"):
@@ -78,8 +98,9 @@ class WorldNode(Node):
         self.scenario = scenario
         self.fingerprint = tp.scenario_fingerprint(scenario)
         # A fresh id per run: messages of any other run (a stray node) are told apart.
-        self.rt = WorldRuntime(scenario, p["max_steps"] or None, p["event_skipping"],
-                               run=secrets.token_hex(6))
+        self.rt = WorldRuntime(
+            scenario, p["max_steps"] or None, p["event_skipping"], run=secrets.token_hex(6)
+        )
         self.result_file = p["result_file"]
         self.marker_every = p["marker_every"]
         self.exit_when_done = p["exit_when_done"]
@@ -92,8 +113,8 @@ class WorldNode(Node):
         self.ticks_sent = 0
         self.t_start = 0.0
         self.last_progress = self.stall_since = time.monotonic()
-        self.last_sent: list[String] = []      # what the current step published, for resend()
-        self.last_agents: list[int] = []       # ... to whom (the survivors)
+        self.last_sent: list[String] = []  # what the current step published, for resend()
+        self.last_agents: list[int] = []  # ... to whom (the survivors)
         self.checkpoint_file = p["checkpoint_file"]
         self.resumed = False
         if p["resume"]:
@@ -107,24 +128,29 @@ class WorldNode(Node):
         self.pub_result = self.create_publisher(String, tp.RESULT, tp.RESULT_QOS)
         self.sub_acted = self.create_subscription(String, tp.ACTED, self.on_acted, q)
         self.sub_ready = self.create_subscription(String, tp.READY, self.on_ready, tp.LATCHED_ALL_QOS)
-        self.sub_report = self.create_subscription(String, tp.REPORTS, self.on_report,
-                                                   tp.LATCHED_ALL_QOS)
+        self.sub_report = self.create_subscription(String, tp.REPORTS, self.on_report, tp.LATCHED_ALL_QOS)
         # One liveliness reader per robot: a killed agent process is reported within the lease.
         self.sub_alive = {}
-        self.alive_seen: set[int] = set()   # agents whose liveliness the world has seen
+        self.alive_seen: set[int] = set()  # agents whose liveliness the world has seen
         self.suspects: dict[int, float] = {}  # liveliness lost since (monotonic s), not yet failed
         self.failure_timeout = p["failure_timeout"]
         if p["failure_timeout"] > 0:
             for i in self.ids:
                 events = SubscriptionEventCallbacks(liveliness=functools.partial(self.on_liveliness, i))
                 self.sub_alive[i] = self.create_subscription(
-                    String, tp.alive_topic(i), functools.partial(self.on_alive_sample, i),
-                    tp.alive_qos(p["failure_timeout"]), event_callbacks=events)
+                    String,
+                    tp.alive_topic(i),
+                    functools.partial(self.on_alive_sample, i),
+                    tp.alive_qos(p["failure_timeout"]),
+                    event_callbacks=events,
+                )
         self.timer = self.create_timer(0.1, self.on_timer)
         self.publish_state(self.rt.world.t)
         if self.resumed:
-            self.get_logger().info(f"resuming at step {self.rt.world.t} from {self.checkpoint_file}; "
-                                   f"waiting for {len(self.ids)} agents to match")
+            self.get_logger().info(
+                f"resuming at step {self.rt.world.t} from {self.checkpoint_file}; "
+                f"waiting for {len(self.ids)} agents to match"
+            )
         else:
             self.get_logger().info(f"waiting for {len(self.ids)} agents ({self.fingerprint})")
 
@@ -134,16 +160,23 @@ class WorldNode(Node):
         """The whole truth and what this step publishes, written atomically (tmp + rename)."""
         if not self.checkpoint_file:
             return
-        state = {"fingerprint": self.fingerprint, "rt": self.rt, "ticks_sent": self.ticks_sent,
-                 "last_sent": [m.data for m in self.last_sent], "last_agents": self.last_agents}
+        state = {
+            "fingerprint": self.fingerprint,
+            "rt": self.rt,
+            "ticks_sent": self.ticks_sent,
+            "last_sent": [m.data for m in self.last_sent],
+            "last_agents": self.last_agents,
+        }
         tmp = f"{self.checkpoint_file}.tmp"
         try:
             with open(tmp, "wb") as f:
                 pickle.dump(state, f, protocol=pickle.HIGHEST_PROTOCOL)
             os.replace(tmp, self.checkpoint_file)
         except OSError as exc:
-            self.throttle.note(("checkpoint", "world"),
-                               f"checkpoint_file: cannot write {self.checkpoint_file} ({exc.strerror})")
+            self.throttle.note(
+                ("checkpoint", "world"),
+                f"checkpoint_file: cannot write {self.checkpoint_file} ({exc.strerror})",
+            )
 
     def load_checkpoint(self) -> None:
         if not self.checkpoint_file:
@@ -157,8 +190,9 @@ class WorldNode(Node):
         except (OSError, pickle.UnpicklingError, EOFError, AttributeError) as exc:
             raise ParameterError(f"resume: cannot read {self.checkpoint_file} ({exc})") from None
         if not isinstance(state, dict) or state.get("fingerprint") != self.fingerprint:
-            raise ParameterError(f"resume: {self.checkpoint_file} is not a checkpoint of this "
-                                 f"scenario ({self.fingerprint})")
+            raise ParameterError(
+                f"resume: {self.checkpoint_file} is not a checkpoint of this scenario ({self.fingerprint})"
+            )
         self.rt = state["rt"]
         self.ticks_sent = state["ticks_sent"]
         self.last_sent = [String(data=d) for d in state["last_sent"]]
@@ -174,8 +208,11 @@ class WorldNode(Node):
         if r.agent not in self.ids:
             self.throttle.warn(tp.READY, f"agent {r.agent}", "not in the scenario's team")
         elif r.scenario != self.fingerprint:
-            self.throttle.warn(tp.READY, f"agent {r.agent}",
-                               f"loaded scenario {r.scenario}, the world runs {self.fingerprint}")
+            self.throttle.warn(
+                tp.READY,
+                f"agent {r.agent}",
+                f"loaded scenario {r.scenario}, the world runs {self.fingerprint}",
+            )
         else:
             self.ready[r.agent] = r
         self.try_start()
@@ -187,11 +224,13 @@ class WorldNode(Node):
         writers = self.sub_acted.get_publisher_count()
         unseen = sorted(set(self.rt.live) - self.alive_seen) if self.sub_alive else []
         if ticks or writers < len(self.rt.live) or unseen:
-            if time.monotonic() - self.stall_since > STALL_S:   # say what discovery lacks
-                self.throttle.note(("start", "world"),
-                                   f"not starting yet: tick readers unmatched {ticks[:8]}, action "
-                                   f"writers {writers}/{len(self.rt.live)}, liveliness not seen "
-                                   f"from {unseen[:8]}")
+            if time.monotonic() - self.stall_since > STALL_S:  # say what discovery lacks
+                self.throttle.note(
+                    ("start", "world"),
+                    f"not starting yet: tick readers unmatched {ticks[:8]}, action "
+                    f"writers {writers}/{len(self.rt.live)}, liveliness not seen "
+                    f"from {unseen[:8]}",
+                )
             return  # the timer tries again
         if self.resumed:
             # The agents are mid-run: publish the checkpointed step again (resend does it).
@@ -204,7 +243,7 @@ class WorldNode(Node):
         protocols = {r.protocol for r in self.ready.values()}
         if len(protocols) > 1:
             self.throttle.warn(tp.READY, "agents", f"mixed protocols {sorted(protocols)}")
-        self.rt.protocol = min(protocols)   # what a failure can be recovered by
+        self.rt.protocol = min(protocols)  # what a failure can be recovered by
         self.rt.organisation = min(r.organisation for r in self.ready.values())
         self.started = True
         self.t_start = time.monotonic()
@@ -232,9 +271,11 @@ class WorldNode(Node):
         if self.rt.ended is None and now - self.stall_since > STALL_S:
             # Say who the barrier waits for: a silent stall is the worst failure to debug.
             missing = [i for i in self.rt.live if i not in self.rt.acted_agents()]
-            self.throttle.note(("stall", "world"),
-                               f"step {self.rt.world.t} stalled for {STALL_S:g} s: no action yet "
-                               f"from agents {missing} (ticks re-sent every {tp.RESEND_S:g} s)")
+            self.throttle.note(
+                ("stall", "world"),
+                f"step {self.rt.world.t} stalled for {STALL_S:g} s: no action yet "
+                f"from agents {missing} (ticks re-sent every {tp.RESEND_S:g} s)",
+            )
             self.stall_since = now
 
     # ------------------------------------------------------------------ stepping
@@ -247,13 +288,14 @@ class WorldNode(Node):
             self.last_sent = [tp.to_string(nxt)]
             self.save_checkpoint()
             self.pub_end.publish(self.last_sent[0])
-            self.get_logger().info(f"run ended at step {nxt.steps} (completed: {nxt.completed}); "
-                                   "collecting reports")
+            self.get_logger().info(
+                f"run ended at step {nxt.steps} (completed: {nxt.completed}); collecting reports"
+            )
             return
         self.last_sent = [tp.to_string(tick) for tick in nxt]
         self.last_agents = [tick.observation.agent for tick in nxt]
         self.ticks_sent += 1
-        self.save_checkpoint()    # before publishing: a published step is always recoverable
+        self.save_checkpoint()  # before publishing: a published step is always recoverable
         for tick, msg in zip(nxt, self.last_sent):
             self.pub_tick[tick.observation.agent].publish(msg)
 
@@ -280,9 +322,10 @@ class WorldNode(Node):
         a = tp.decode_or_warn(msg, tp.ACTED, Acted, self.throttle)
         if a is None:
             return
-        if a.run != self.rt.run:   # another run's (a stray): say so whether or not we started
-            self.throttle.warn(tp.ACTED, f"agent {a.action.agent}",
-                               f"action of run {a.run!r}, this is run {self.rt.run!r}")
+        if a.run != self.rt.run:  # another run's (a stray): say so whether or not we started
+            self.throttle.warn(
+                tp.ACTED, f"agent {a.action.agent}", f"action of run {a.run!r}, this is run {self.rt.run!r}"
+            )
             return
         if not self.started:
             self.throttle.warn(tp.ACTED, f"agent {a.action.agent}", "action before the run started")
@@ -336,8 +379,7 @@ class WorldNode(Node):
             return
         if self.rt.ended is not None:
             self.rt.fail(agent)
-            self.get_logger().warning(f"agent {agent} lost after the run ended; not waiting for "
-                                      "its report")
+            self.get_logger().warning(f"agent {agent} lost after the run ended; not waiting for its report")
             if not self.rt.missing_reports:
                 self.finish()
             return
@@ -345,8 +387,9 @@ class WorldNode(Node):
         nxt = self.rt.fail(agent)
         self.get_logger().warning(
             f"agent {agent} lost (no liveliness for 2 x {self.failure_timeout:g} s): failed in step "
-            f"{step}; {len(self.rt.live)} survivors" + (f"; {self.rt.aborted}" if self.rt.aborted
-                                                         else ", re-coordinating"))
+            f"{step}; {len(self.rt.live)} survivors"
+            + (f"; {self.rt.aborted}" if self.rt.aborted else ", re-coordinating")
+        )
         if nxt is not None:
             self.send(nxt)
         if self.rt.aborted:
@@ -369,7 +412,7 @@ class WorldNode(Node):
 
     def finish(self) -> None:
         result = self.rt.result()
-        result.lower_bound = lower_bound(self.scenario).value   # as `ost sim` prints it
+        result.lower_bound = lower_bound(self.scenario).value  # as `ost sim` prints it
         text = json.dumps(result.to_dict(), indent=1)
         if self.result_file:
             try:
@@ -379,13 +422,18 @@ class WorldNode(Node):
         self.pub_result.publish(String(data=text))
         self.result_at = time.monotonic()
         wall = self.result_at - self.t_start
-        stats = {"wall_s": round(wall, 3), "steps": self.rt.world.t,
-                 "round_trips": self.rt.round_trips, "skipped_steps": self.rt.skipped,
-                 "protocol_messages": self.rt.messages}
-        self.get_logger().info(f"result: makespan {result.makespan}, completed {result.completed}; "
-                               f"transport {json.dumps(stats)}")
+        stats = {
+            "wall_s": round(wall, 3),
+            "steps": self.rt.world.t,
+            "round_trips": self.rt.round_trips,
+            "skipped_steps": self.rt.skipped,
+            "protocol_messages": self.rt.messages,
+        }
+        self.get_logger().info(
+            f"result: makespan {result.makespan}, completed {result.completed}; transport {json.dumps(stats)}"
+        )
         if self.result_file:
-            with contextlib.suppress(OSError):   # the stats are a nicety; the result is written
+            with contextlib.suppress(OSError):  # the stats are a nicety; the result is written
                 Path(self.result_file + ".transport.json").write_text(json.dumps(stats) + "\n")
 
 
@@ -408,13 +456,13 @@ def main(args=None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 130
     except Exception as exc:
-        if "Parameter" in type(exc).__name__:   # wrong parameter type from --ros-args
+        if "Parameter" in type(exc).__name__:  # wrong parameter type from --ros-args
             print(f"world_node: error: {exc}", file=sys.stderr)
             code = 2
         else:
             raise
     finally:
-        tp.guard_exit()   # never hang in teardown (see transport.guard_exit)
+        tp.guard_exit()  # never hang in teardown (see transport.guard_exit)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

@@ -1,4 +1,5 @@
 """argparse helpers shared by the verbs: typed values with one-line errors, and leaf parsers."""
+
 from __future__ import annotations
 
 import argparse
@@ -14,6 +15,7 @@ class OneLineParser(argparse.ArgumentParser):
 
 def at_least(minimum: int):
     """argparse type: an integer >= minimum."""
+
     def parse(text: str) -> int:
         try:
             value = int(text)
@@ -22,6 +24,7 @@ def at_least(minimum: int):
         if value < minimum:
             raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
         return value
+
     return parse
 
 

@@ -1,4 +1,5 @@
 """Core verbs: ``ost generate``, ``ost sim``, ``ost schedule``."""
+
 from __future__ import annotations
 
 import argparse
@@ -24,29 +25,44 @@ OBJECT_KEYS = ("id", "location", "destination", "required")
 
 
 def register(sub) -> None:
-    p = leaf(sub, "generate", cmd_generate, help="write a random scenario (paper §5.1)",
-              description="Write the paper's random scenario: distinct uniform object locations, "
-                          "uniform destinations, n_i uniform in 1..nmax; ids = rank by (x, y). "
-                          "The objects depend on --seed only, not on --agents.")
+    p = leaf(
+        sub,
+        "generate",
+        cmd_generate,
+        help="write a random scenario (paper §5.1)",
+        description="Write the paper's random scenario: distinct uniform object locations, "
+        "uniform destinations, n_i uniform in 1..nmax; ids = rank by (x, y). "
+        "The objects depend on --seed only, not on --agents.",
+    )
     p.add_argument("--agents", type=positive, required=True, help="number of agents N")
     p.add_argument("--objects", type=natural, required=True, help="number of objects M")
     p.add_argument("--seed", type=natural, required=True, help="random seed")
     p.add_argument("--width", type=positive, default=DEFAULT_WIDTH, help="grid width (500)")
     p.add_argument("--height", type=positive, default=DEFAULT_HEIGHT, help="grid height (200)")
-    p.add_argument("--nmax", type=positive, default=DEFAULT_NMAX,
-                   help="largest number of agents an object needs (10)")
-    p.add_argument("--periods", type=period_list, default=None,
-                   help="heterogeneous team: comma-separated periods (agent k moves one cell every "
-                        "periods[k mod len] steps), e.g. 1,1,2,3 (default: all 1, the paper's)")
+    p.add_argument(
+        "--nmax", type=positive, default=DEFAULT_NMAX, help="largest number of agents an object needs (10)"
+    )
+    p.add_argument(
+        "--periods",
+        type=period_list,
+        default=None,
+        help="heterogeneous team: comma-separated periods (agent k moves one cell every "
+        "periods[k mod len] steps), e.g. 1,1,2,3 (default: all 1, the paper's)",
+    )
     p.add_argument("-o", "--output", help="file to write (default: standard output)")
 
     add_sim_parser(sub)
 
-    p = leaf(sub, "schedule", cmd_schedule, help="run only the Coordination algorithm",
-              description="Run Algorithm Coordination on a state file "
-                          '{"agents":[{"id","cost","location"}],'
-                          '"objects":[{"id","location","destination","required"}]} '
-                          "and print the schedule in scheduling order.")
+    p = leaf(
+        sub,
+        "schedule",
+        cmd_schedule,
+        help="run only the Coordination algorithm",
+        description="Run Algorithm Coordination on a state file "
+        '{"agents":[{"id","cost","location"}],'
+        '"objects":[{"id","location","destination","required"}]} '
+        "and print the schedule in scheduling order.",
+    )
     p.add_argument("state", help="state file (JSON; '-' for standard input)")
     p.add_argument("--json", action="store_true", help="print JSON")
 
@@ -56,14 +72,22 @@ def register(sub) -> None:
 
 def cmd_generate(args: argparse.Namespace) -> int:
     try:
-        scenario = generate_scenario(args.agents, args.objects, args.seed,
-                                     Grid(args.width, args.height), args.nmax)
+        scenario = generate_scenario(
+            args.agents, args.objects, args.seed, Grid(args.width, args.height), args.nmax
+        )
         if args.periods:
             # a heterogeneous team: agent k moves every periods[k mod len] steps
-            agents = [dataclasses.replace(a, period=args.periods[k % len(args.periods)])
-                      for k, a in enumerate(scenario.agents)]
-            scenario = build_scenario(scenario.grid, scenario.objects, partition=scenario.partition,
-                                      agents=agents, nmax=scenario.nmax)
+            agents = [
+                dataclasses.replace(a, period=args.periods[k % len(args.periods)])
+                for k, a in enumerate(scenario.agents)
+            ]
+            scenario = build_scenario(
+                scenario.grid,
+                scenario.objects,
+                partition=scenario.partition,
+                agents=agents,
+                nmax=scenario.nmax,
+            )
     except ScenarioError as exc:
         raise UsageError(str(exc)) from None
     text = dump_scenario(scenario)
@@ -81,42 +105,80 @@ def cmd_generate(args: argparse.Namespace) -> int:
 
 
 def add_sim_parser(sub) -> None:
-    p = leaf(sub, "sim", cmd_sim, help="simulate a scenario in-process",
-             description="Run a scenario in-process and print the makespan, last delivery and "
-                         "per-agent cost / idle / carry time. Protocols: "
-                         + "; ".join(f"{s.name}: {s.title}" for s in protocols.REGISTRY.values()) + ".")
+    p = leaf(
+        sub,
+        "sim",
+        cmd_sim,
+        help="simulate a scenario in-process",
+        description="Run a scenario in-process and print the makespan, last delivery and "
+        "per-agent cost / idle / carry time. Protocols: "
+        + "; ".join(f"{s.name}: {s.title}" for s in protocols.REGISTRY.values())
+        + ".",
+    )
     p.add_argument("scenario", help="scenario file (YAML)")
     p.add_argument("--protocol", choices=protocols.names(), default="ccp", help="cooperation protocol")
     trig = p.add_mutually_exclusive_group()
-    trig.add_argument("--ci", type=positive, default=1,
-                      help="coordination interval: coordinate when this many found objects are "
-                           "unscheduled (default 1; >= M means after the whole search)")
+    trig.add_argument(
+        "--ci",
+        type=positive,
+        default=1,
+        help="coordination interval: coordinate when this many found objects are "
+        "unscheduled (default 1; >= M means after the whole search)",
+    )
     trig.add_argument("--interval", type=positive, help="coordinate every T time steps instead")
-    trig.add_argument("--area-fraction", type=fraction,
-                      help="coordinate each time this fraction of the area is searched instead")
+    trig.add_argument(
+        "--area-fraction",
+        type=fraction,
+        help="coordinate each time this fraction of the area is searched instead",
+    )
     add_protocol_options(p)
-    p.add_argument("--agents", type=positive,
-                   help="replace the scenario's team by N agents (default partition and bases)")
+    p.add_argument(
+        "--agents",
+        type=positive,
+        help="replace the scenario's team by N agents (default partition and bases)",
+    )
     p.add_argument("--max-steps", type=positive, help="stop after this many steps")
-    p.add_argument("--coordination", choices=ORGANISATIONS, default="distributed",
-                   help="who runs Algorithm Coordination: every agent (distributed, default) or "
-                        "the lowest-id agent, which broadcasts the schedule (coordinator; ccp)")
-    p.add_argument("--partition", choices=("equal", "negotiated"), default="equal",
-                   help="search areas: the paper's equal m×n partition, or negotiated among the "
-                        "robots by speed and private forbidden zones (ost negotiate partition)")
+    p.add_argument(
+        "--coordination",
+        choices=ORGANISATIONS,
+        default="distributed",
+        help="who runs Algorithm Coordination: every agent (distributed, default) or "
+        "the lowest-id agent, which broadcasts the schedule (coordinator; ccp)",
+    )
+    p.add_argument(
+        "--partition",
+        choices=("equal", "negotiated"),
+        default="equal",
+        help="search areas: the paper's equal m×n partition, or negotiated among the "
+        "robots by speed and private forbidden zones (ost negotiate partition)",
+    )
     p.add_argument("--partition-seed", type=natural, default=0, help="seed of that negotiation (0)")
-    p.add_argument("--fail", type=failure, action="append", default=[], metavar="AGENT:STEP",
-                   help="robot AGENT fails in step STEP (repeatable; protocols that recover: "
-                        + ", ".join(n for n, s in protocols.REGISTRY.items() if s.capabilities.recovers_failures)
-                        + "): survivors re-plan")
-    p.add_argument("--engine", choices=("auto", *ENGINES), default="auto",
-                   help="step: the reference, every agent every step; event: jumps from decision "
-                        "to decision, same result (default auto: event for big runs, step when "
-                        "a progress bar or a plot needs every step)")
+    p.add_argument(
+        "--fail",
+        type=failure,
+        action="append",
+        default=[],
+        metavar="AGENT:STEP",
+        help="robot AGENT fails in step STEP (repeatable; protocols that recover: "
+        + ", ".join(n for n, s in protocols.REGISTRY.items() if s.capabilities.recovers_failures)
+        + "): survivors re-plan",
+    )
+    p.add_argument(
+        "--engine",
+        choices=("auto", *ENGINES),
+        default="auto",
+        help="step: the reference, every agent every step; event: jumps from decision "
+        "to decision, same result (default auto: event for big runs, step when "
+        "a progress bar or a plot needs every step)",
+    )
     p.add_argument("--json", action="store_true", help="print the full result as JSON")
     p.add_argument("--plot", metavar="PNG", help="also draw the map and every agent's timeline")
-    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                   help="progress bar on stderr (default: when stderr is a terminal)")
+    p.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="progress bar on stderr (default: when stderr is a terminal)",
+    )
 
 
 def add_protocol_options(p: argparse.ArgumentParser) -> None:
@@ -124,8 +186,13 @@ def add_protocol_options(p: argparse.ArgumentParser) -> None:
     for spec in protocols.REGISTRY.values():
         for opt in spec.options:
             default = protocols.option_default(spec, opt)
-            p.add_argument(opt.flag, dest=opt.name, type=type(default), default=None,
-                           help=f"{spec.name.upper()}: {opt.help} (default {default})")
+            p.add_argument(
+                opt.flag,
+                dest=opt.name,
+                type=type(default),
+                default=None,
+                help=f"{spec.name.upper()}: {opt.help} (default {default})",
+            )
 
 
 def protocol_settings(args: argparse.Namespace) -> Any:
@@ -139,8 +206,9 @@ def protocol_settings(args: argparse.Namespace) -> Any:
 def cmd_sim(args: argparse.Namespace) -> int:
     settings = protocol_settings(args)
     scenario = load_scenario_arg(args.scenario, args.agents)
-    policy = CoordinationPolicy(ci=args.ci, interval=args.interval, area_fraction=args.area_fraction,
-                                organisation=args.coordination)
+    policy = CoordinationPolicy(
+        ci=args.ci, interval=args.interval, area_fraction=args.area_fraction, organisation=args.coordination
+    )
     failures = dict(args.fail)
     if len(failures) != len(args.fail):
         raise UsageError("--fail: an agent can fail only once")
@@ -156,15 +224,23 @@ def cmd_sim(args: argparse.Namespace) -> int:
     engine = _sim_engine(args, scenario, policy, failures)
     hooks, bar, timeline = _step_hooks(args, scenario, engine)
     try:
-        result = simulate(scenario, args.protocol, policy, max_steps=args.max_steps,
-                          on_step=_each(hooks) if hooks else None, engine=engine, settings=settings,
-                          failures=failures)
+        result = simulate(
+            scenario,
+            args.protocol,
+            policy,
+            max_steps=args.max_steps,
+            on_step=_each(hooks) if hooks else None,
+            engine=engine,
+            settings=settings,
+            failures=failures,
+        )
     finally:
         if bar is not None:
             bar.close()
     result.lower_bound = lower_bound(scenario).value
     if timeline is not None:
         from ost_ros.plot import plot_run
+
         try:
             plot_run(scenario, result, timeline, args.plot)
         except OSError as exc:
@@ -184,22 +260,28 @@ def _negotiated(args: argparse.Namespace, scenario: Scenario) -> Scenario:
     """The scenario with search areas negotiated among its robots."""
     if not protocols.get(args.protocol).capabilities.own_sweeps:
         able = ", ".join(n for n, s in protocols.REGISTRY.items() if s.capabilities.own_sweeps)
-        raise UsageError(f"--partition negotiated: {args.protocol} cannot run robots with their own "
-                         f"sweeps; use --protocol {' or '.join(able.split(', '))}")
+        raise UsageError(
+            f"--partition negotiated: {args.protocol} cannot run robots with their own "
+            f"sweeps; use --protocol {' or '.join(able.split(', '))}"
+        )
     from ost_ros.negotiation.errors import NegotiationError
     from ost_ros.negotiation.partition import negotiated_scenario
+
     try:
         return negotiated_scenario(scenario, seed=args.partition_seed)[0]
     except (NegotiationError, ScenarioError) as exc:
         raise UsageError(f"--partition negotiated: {exc}") from None
 
 
-def _sim_engine(args: argparse.Namespace, scenario: Scenario, policy: CoordinationPolicy,
-                failures: dict[int, int]) -> str:
+def _sim_engine(
+    args: argparse.Namespace, scenario: Scenario, policy: CoordinationPolicy, failures: dict[int, int]
+) -> str:
     """The engine to run on: the one asked for; auto picks the event engine for big runs unless a
     plot or a progress bar needs every step; failures and the coordinator need the step engine."""
-    for flag, needs_steps in (("--fail: robot failures run", bool(failures)),
-                              ("--coordination coordinator runs", policy.centralised)):
+    for flag, needs_steps in (
+        ("--fail: robot failures run", bool(failures)),
+        ("--coordination coordinator runs", policy.centralised),
+    ):
         if needs_steps and args.engine == "event":
             raise UsageError(f"{flag} on the step engine (--engine step)")
         if needs_steps:
@@ -222,6 +304,7 @@ def _step_hooks(args: argparse.Namespace, scenario: Scenario, engine: str):
     bar = None
     if show and engine == "step":
         from tqdm import tqdm
+
         bar = tqdm(total=len(scenario.objects), desc="delivered", unit="obj", file=sys.stderr, leave=False)
 
         def progress(world: World, _actions: list) -> None:
@@ -230,6 +313,7 @@ def _step_hooks(args: argparse.Namespace, scenario: Scenario, engine: str):
                 bar.update(done - bar.n)
             if world.t % 500 == 0:
                 bar.set_postfix(step=world.t, refresh=False)
+
         hooks.append(progress)
     return hooks, bar, timeline
 
@@ -238,6 +322,7 @@ def _each(hooks: list[StepHook]) -> StepHook:
     def on_step(world: World, actions: list) -> None:
         for hook in hooks:
             hook(world, actions)
+
     return on_step
 
 
@@ -250,9 +335,13 @@ def parse_state(data: Any) -> tuple[list[int], list[int], list[tuple[int, int]],
     agents = []
     for k, a in enumerate(v.listing(data["agents"], "agents")):
         a = v.mapping(a, f"agents[{k}]", ("id", "cost", "location"), ("id", "cost", "location"))
-        agents.append((v.integer(a["id"], f"agents[{k}].id", 0),
-                       v.integer(a["cost"], f"agents[{k}].cost", 0),
-                       v.cell(a["location"], f"agents[{k}].location")))
+        agents.append(
+            (
+                v.integer(a["id"], f"agents[{k}].id", 0),
+                v.integer(a["cost"], f"agents[{k}].cost", 0),
+                v.cell(a["location"], f"agents[{k}].location"),
+            )
+        )
     if not agents:
         raise FieldError("agents: the team needs at least one agent")
     agents.sort()
@@ -263,9 +352,12 @@ def parse_state(data: Any) -> tuple[list[int], list[int], list[tuple[int, int]],
     for k, o in enumerate(v.listing(data["objects"], "objects")):
         where = f"objects[{k}]"
         o = v.mapping(o, where, OBJECT_KEYS, OBJECT_KEYS)
-        obj = ObjectSpec(v.integer(o["id"], where + ".id", 0), v.cell(o["location"], where + ".location"),
-                         v.cell(o["destination"], where + ".destination"),
-                         v.integer(o["required"], where + ".required", 1))
+        obj = ObjectSpec(
+            v.integer(o["id"], where + ".id", 0),
+            v.cell(o["location"], where + ".location"),
+            v.cell(o["destination"], where + ".destination"),
+            v.integer(o["required"], where + ".required", 1),
+        )
         if obj.id in seen:
             raise FieldError(f"{where}.id: duplicate id {obj.id}")
         if obj.required > len(agents):
@@ -292,10 +384,14 @@ def cmd_schedule(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     result = coordinate(ids, cost, loc, objects)
     out = {
-        "schedule": [{"object": a.object, "agents": list(a.agents), "start": a.start,
-                      "finish": a.finish} for a in result.schedule],
-        "agents": [{"id": i, "cost": int(c), "location": [int(v) for v in xy]}
-                   for i, c, xy in zip(ids, result.cost, result.loc)],
+        "schedule": [
+            {"object": a.object, "agents": list(a.agents), "start": a.start, "finish": a.finish}
+            for a in result.schedule
+        ],
+        "agents": [
+            {"id": i, "cost": int(c), "location": [int(v) for v in xy]}
+            for i, c, xy in zip(ids, result.cost, result.loc)
+        ],
     }
     if args.json:
         print(json.dumps(out, indent=1))

@@ -1,5 +1,6 @@
 """``ost faults report``: what robot failures (and, with ``--dds``, a real SIGKILL and a lossy
 network) cost — objects delivered / total and the makespan's overhead over the fault-free run."""
+
 from __future__ import annotations
 
 import argparse
@@ -27,11 +28,16 @@ REPO = Path(__file__).resolve().parents[2]
 def register(sub) -> None:
     p = sub.add_parser("faults", help="robot failures and lossy networks: the fault report")
     verbs = p.add_subparsers(dest="faults_verb", metavar="VERB", parser_class=type(p))
-    r = leaf(verbs, "report", cmd_report, help="table: scenario, fault, delivered / total, overhead",
-             description="Robot failures in-process (the paper's area, N=10 and 20) against the "
-                         "fault-free run; --dds adds real runs over DDS: an agent process "
-                         "SIGKILLed mid-run, and (as root, with nftables) 20 %% packet loss on "
-                         "three simulated hosts.")
+    r = leaf(
+        verbs,
+        "report",
+        cmd_report,
+        help="table: scenario, fault, delivered / total, overhead",
+        description="Robot failures in-process (the paper's area, N=10 and 20) against the "
+        "fault-free run; --dds adds real runs over DDS: an agent process "
+        "SIGKILLed mid-run, and (as root, with nftables) 20 %% packet loss on "
+        "three simulated hosts.",
+    )
     r.add_argument("--quick", action="store_true", help="one small scenario (a few seconds)")
     r.add_argument("--dds", action="store_true", help="also run the DDS fault runs (about a minute)")
     r.add_argument("--seed", type=at_least(0), default=1, help="which robots fail (seeded draw)")
@@ -66,8 +72,13 @@ def _ost_up(*args: str, timeout: float = 300) -> tuple[dict | None, str, float]:
     env.pop("ROS_DOMAIN_ID", None)
     env.setdefault("OST_VENV", str(Path(sys.executable).parent.parent))
     t = time.monotonic()
-    p = subprocess.run(["bash", str(REPO / "bringup_scripts" / "ost_up.sh"), *args, "--json"],
-                       capture_output=True, text=True, env=env, timeout=timeout)
+    p = subprocess.run(
+        ["bash", str(REPO / "bringup_scripts" / "ost_up.sh"), *args, "--json"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=timeout,
+    )
     try:
         return json.loads(p.stdout), p.stderr, time.monotonic() - t
     except ValueError:
@@ -88,15 +99,41 @@ def dds_rows() -> list[FaultRow]:
         path.write_text(dump_scenario(scenario))
         base, err, wall0 = _ost_up("--scenario", str(path), "--run-dir", f"{tmp}/base")
         if base is None:
-            return [FaultRow(name, "none", 0, len(scenario.objects), None, None,
-                             "fault-free DDS run failed: " + err.strip().splitlines()[-1])]
-        rows.append(FaultRow(name, "none", _delivered(base), len(base["objects"]), base["makespan"],
-                             base["makespan"], f"wall {wall0:.1f} s"))
-        got, err, wall = _ost_up("--scenario", str(path), "--kill-agent", "2:40",
-                                 "--run-dir", f"{tmp}/kill")
+            return [
+                FaultRow(
+                    name,
+                    "none",
+                    0,
+                    len(scenario.objects),
+                    None,
+                    None,
+                    "fault-free DDS run failed: " + err.strip().splitlines()[-1],
+                )
+            ]
+        rows.append(
+            FaultRow(
+                name,
+                "none",
+                _delivered(base),
+                len(base["objects"]),
+                base["makespan"],
+                base["makespan"],
+                f"wall {wall0:.1f} s",
+            )
+        )
+        got, err, wall = _ost_up("--scenario", str(path), "--kill-agent", "2:40", "--run-dir", f"{tmp}/kill")
         if got is None:
-            rows.append(FaultRow(name, "agent 2 SIGKILL at step 40", 0, len(scenario.objects), None,
-                                 base["makespan"], "run failed: " + err.strip().splitlines()[-1]))
+            rows.append(
+                FaultRow(
+                    name,
+                    "agent 2 SIGKILL at step 40",
+                    0,
+                    len(scenario.objects),
+                    None,
+                    base["makespan"],
+                    "run failed: " + err.strip().splitlines()[-1],
+                )
+            )
         else:
             failures = {f["agent"]: f["step"] for f in got["failures"]}
             ref = simulate(scenario, "ccp", CoordinationPolicy(ci=1), failures=failures).to_dict()
@@ -105,25 +142,60 @@ def dds_rows() -> list[FaultRow]:
             agent = (Path(tmp) / "kill" / "agent_2.log").read_text()
             died, seen = _stamp(agent, "die_at_step"), _stamp(world, "agent 2 lost")
             detect = f"detected after {seen - died:.2f} s; " if died and seen else ""
-            rows.append(FaultRow(name, "agent 2 SIGKILL at step 40", _delivered(got), len(got["objects"]),
-                                 got["makespan"], base["makespan"],
-                                 f"{detect}failed in step {failures.get(2)}; = ost sim --fail: "
-                                 f"{'yes' if same else 'NO'}; wall {wall:.1f} s"))
+            rows.append(
+                FaultRow(
+                    name,
+                    "agent 2 SIGKILL at step 40",
+                    _delivered(got),
+                    len(got["objects"]),
+                    got["makespan"],
+                    base["makespan"],
+                    f"{detect}failed in step {failures.get(2)}; = ost sim --fail: "
+                    f"{'yes' if same else 'NO'}; wall {wall:.1f} s",
+                )
+            )
         if os.geteuid() == 0 and shutil.which("nft"):
-            got, err, wall = _ost_up("--scenario", str(path), "--hosts", "3", "--loss", "20",
-                                     "--run-dir", f"{tmp}/loss")
+            got, err, wall = _ost_up(
+                "--scenario", str(path), "--hosts", "3", "--loss", "20", "--run-dir", f"{tmp}/loss"
+            )
             fault = "20 % packet loss, 3 simulated hosts"
             if got is None:
-                rows.append(FaultRow(name, fault, 0, len(scenario.objects), None, base["makespan"],
-                                     "run failed: " + err.strip().splitlines()[-1]))
+                rows.append(
+                    FaultRow(
+                        name,
+                        fault,
+                        0,
+                        len(scenario.objects),
+                        None,
+                        base["makespan"],
+                        "run failed: " + err.strip().splitlines()[-1],
+                    )
+                )
             else:
                 same = got == base
-                rows.append(FaultRow(name, fault, _delivered(got), len(got["objects"]), got["makespan"],
-                                     base["makespan"], f"= fault-free result: {'yes' if same else 'NO'}; "
-                                     f"wall {wall:.1f} s vs {wall0:.1f} s"))
+                rows.append(
+                    FaultRow(
+                        name,
+                        fault,
+                        _delivered(got),
+                        len(got["objects"]),
+                        got["makespan"],
+                        base["makespan"],
+                        f"= fault-free result: {'yes' if same else 'NO'}; wall {wall:.1f} s vs {wall0:.1f} s",
+                    )
+                )
         else:
-            rows.append(FaultRow(name, "20 % packet loss, 3 simulated hosts", 0, len(scenario.objects),
-                                 None, base["makespan"], "not run: needs root and nft (nftables)"))
+            rows.append(
+                FaultRow(
+                    name,
+                    "20 % packet loss, 3 simulated hosts",
+                    0,
+                    len(scenario.objects),
+                    None,
+                    base["makespan"],
+                    "not run: needs root and nft (nftables)",
+                )
+            )
     return rows
 
 

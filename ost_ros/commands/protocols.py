@@ -1,6 +1,7 @@
 """``ost protocols``: the protocol registry — ``list`` what is registered and what each protocol
 can run; ``check`` a combination (one line and exit code 2 if it cannot run; scripts such as
 ``ost_up.sh`` ask this before starting processes)."""
+
 from __future__ import annotations
 
 import argparse
@@ -23,17 +24,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     ck.add_argument("name", help="protocol name")
     ck.add_argument("--coordination", choices=ORGANISATIONS, default="distributed")
     ck.add_argument("--failures", action="store_true", help="robots may fail (survivors re-plan)")
-    ck.add_argument("--own-sweeps", action="store_true", help="robots with their own sweeps (negotiated areas)")
+    ck.add_argument(
+        "--own-sweeps", action="store_true", help="robots with their own sweeps (negotiated areas)"
+    )
     ck.add_argument("--silence", action="store_true", help="a negotiator falls silent (fault injection)")
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1], prog=p.prog)
 
 
 def describe(spec: protocols.ProtocolSpec) -> dict:
-    return {"name": spec.name, "label": spec.label, "title": spec.title,
-            "capabilities": asdict(spec.capabilities), "states": list(spec.states),
-            "messages": [m.__name__ for m in spec.messages],
-            "channels": {c: [m.__name__ for m in ms] for c, ms in spec.channels.items()},
-            "options": {o.name: protocols.option_default(spec, o) for o in spec.options}}
+    return {
+        "name": spec.name,
+        "label": spec.label,
+        "title": spec.title,
+        "capabilities": asdict(spec.capabilities),
+        "states": list(spec.states),
+        "messages": [m.__name__ for m in spec.messages],
+        "channels": {c: [m.__name__ for m in ms] for c, ms in spec.channels.items()},
+        "options": {o.name: protocols.option_default(spec, o) for o in spec.options},
+    }
 
 
 def cmd_list(args: argparse.Namespace) -> int:
@@ -49,8 +57,10 @@ def cmd_list(args: argparse.Namespace) -> int:
         can = [k.replace("_", " ") for k, v in caps.items() if v is True]
         print(f"{r['name']}  {r['title']}")
         print(f"     organisations: {', '.join(caps['organisations'])}; also: {', '.join(can) or '-'}")
-        print(f"     messages: {', '.join(r['messages'])}"
-              + "".join(f"; /ost/{c}: {', '.join(ms)}" for c, ms in r["channels"].items()))
+        print(
+            f"     messages: {', '.join(r['messages'])}"
+            + "".join(f"; /ost/{c}: {', '.join(ms)}" for c, ms in r["channels"].items())
+        )
         if r["options"]:
             print("     options: " + ", ".join(f"{k} (default {v})" for k, v in r["options"].items()))
     return 0
@@ -58,12 +68,17 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 def cmd_check(args: argparse.Namespace) -> int:
     try:
-        spec = protocols.check(args.name, policy=CoordinationPolicy(organisation=args.coordination),
-                               failures=args.failures, silence=args.silence)
+        spec = protocols.check(
+            args.name,
+            policy=CoordinationPolicy(organisation=args.coordination),
+            failures=args.failures,
+            silence=args.silence,
+        )
     except protocols.ProtocolError as exc:
         raise UsageError(str(exc)) from None
     if args.own_sweeps and not spec.capabilities.own_sweeps:
         able = " or ".join(n for n, s in protocols.REGISTRY.items() if s.capabilities.own_sweeps)
-        raise UsageError(f"{args.name} cannot run robots with their own sweeps (a negotiated "
-                         f"partition); use {able}")
+        raise UsageError(
+            f"{args.name} cannot run robots with their own sweeps (a negotiated partition); use {able}"
+        )
     return 0

@@ -7,6 +7,7 @@ Output follows ``ros2 topic`` / ``ros2 node``. rclpy is imported inside the verb
 of ``ost`` works without ROS. Like ``ros2 ... --no-daemon``, the graph is read after spinning
 for ``--spin-time`` seconds (discovery takes 0–3 s).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -32,9 +33,12 @@ def _seconds(text: str) -> float:
 def register(sub) -> None:
     from ost_ros.commands.args import OneLineParser
 
-    ros = sub.add_parser("ros", help="inspect a running ROS 2 graph (topics, nodes)",
-                         description="Inspect the ROS 2 graph like ros2cli: topic list/echo/hz, "
-                                     "node list. Uses ROS_DOMAIN_ID from the environment.")
+    ros = sub.add_parser(
+        "ros",
+        help="inspect a running ROS 2 graph (topics, nodes)",
+        description="Inspect the ROS 2 graph like ros2cli: topic list/echo/hz, "
+        "node list. Uses ROS_DOMAIN_ID from the environment.",
+    )
     groups = ros.add_subparsers(dest="ros_verb", metavar="VERB", parser_class=OneLineParser)
     topic = groups.add_parser("topic", help="topics")
     tsub = topic.add_subparsers(dest="topic_verb", metavar="VERB", parser_class=OneLineParser)
@@ -44,9 +48,13 @@ def register(sub) -> None:
     def leaf(parent, name, func, spin_time=2.0, **kw):
         p = parent.add_parser(name, **kw)
         p.set_defaults(func=func, prog=p.prog)
-        p.add_argument("--spin-time", type=_seconds, default=spin_time,
-                       help=f"seconds to wait for discovery (default {spin_time:g}"
-                            + (": at most, until the topic has a publisher)" if spin_time > 2 else ")"))
+        p.add_argument(
+            "--spin-time",
+            type=_seconds,
+            default=spin_time,
+            help=f"seconds to wait for discovery (default {spin_time:g}"
+            + (": at most, until the topic has a publisher)" if spin_time > 2 else ")"),
+        )
         return p
 
     p = leaf(tsub, "list", cmd_topic_list, help="output a list of available topics")
@@ -69,7 +77,7 @@ def _dds_defaults() -> None:
     profile = Path(__file__).resolve().parents[2] / "bringup_scripts" / "fastdds_localhost_udp.xml"
     if not os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE") and profile.exists():
         os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(profile)
-        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"   # the profile keeps it on loopback
+        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"  # the profile keeps it on loopback
 
 
 class _Graph:
@@ -83,8 +91,7 @@ class _Graph:
             raise UsageError(f"rclpy is not available ({exc.name}); run bringup_scripts/setup.sh") from None
         self.rclpy = rclpy
         rclpy.init(args=[])
-        self.node = rclpy.create_node("_ost_ros_cli", start_parameter_services=False,
-                                      enable_rosout=False)
+        self.node = rclpy.create_node("_ost_ros_cli", start_parameter_services=False, enable_rosout=False)
         return self
 
     def spin(self, seconds: float) -> None:
@@ -119,8 +126,7 @@ def _wait_for_topic(g: _Graph, name: str, spin_time: float):
         if types and g.node.get_publishers_info_by_topic(name):
             return types[0]
         if time.monotonic() >= end:
-            raise UsageError(f"topic {name} has no publisher (waited {spin_time:g} s; "
-                             "check ROS_DOMAIN_ID)")
+            raise UsageError(f"topic {name} has no publisher (waited {spin_time:g} s; check ROS_DOMAIN_ID)")
         g.spin(0.1)
 
 
@@ -131,9 +137,11 @@ def _qos_for(g: _Graph, name: str):
     infos = g.node.get_publishers_info_by_topic(name)
     reliable = all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
     latched = all(i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos)
-    return QoSProfile(depth=10,
-                      reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-                      durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+    return QoSProfile(
+        depth=10,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+    )
 
 
 def _name(text: str) -> str:
@@ -169,7 +177,7 @@ def to_yaml(msg, indent: str = "") -> str:
                 lines.append(f"{indent}{field}:")
                 for item in items:
                     body = to_yaml(item, indent + "  ").splitlines()
-                    body[0] = indent + "- " + body[0][len(indent) + 2:]
+                    body[0] = indent + "- " + body[0][len(indent) + 2 :]
                     lines.extend(body)
             else:
                 lines.append(f"{indent}{field}:")
@@ -225,19 +233,21 @@ def cmd_topic_hz(args: argparse.Namespace) -> int:
     with _Graph() as g:
         cls = _message_class(_wait_for_topic(g, name, args.spin_time))
         stamps: list[float] = []
-        g.node.create_subscription(cls, name, lambda _m: stamps.append(time.monotonic()),
-                                   _qos_for(g, name))
+        g.node.create_subscription(cls, name, lambda _m: stamps.append(time.monotonic()), _qos_for(g, name))
         next_print = time.monotonic() + 1.0
         while True:
             g.rclpy.spin_once(g.node, timeout_sec=0.1)
             if time.monotonic() < next_print:
                 continue
             next_print += 1.0
-            del stamps[:-args.window - 1]
+            del stamps[: -args.window - 1]
             if len(stamps) < 2:
                 continue
             gaps = [b - a for a, b in zip(stamps, stamps[1:])]
             mean = sum(gaps) / len(gaps)
             std = math.sqrt(sum((x - mean) ** 2 for x in gaps) / len(gaps))
-            print(f"average rate: {1.0 / mean:.3f}\n\tmin: {min(gaps):.3f}s max: {max(gaps):.3f}s "
-                  f"std dev: {std:.5f}s window: {len(stamps)}", flush=True)
+            print(
+                f"average rate: {1.0 / mean:.3f}\n\tmin: {min(gaps):.3f}s max: {max(gaps):.3f}s "
+                f"std dev: {std:.5f}s window: {len(stamps)}",
+                flush=True,
+            )

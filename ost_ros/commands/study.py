@@ -1,5 +1,6 @@
 """Study verbs: ``ost optimal`` (Algorithm Optimal-OST, CCP's gap) and ``ost reproduce`` (the
 paper's whole simulation study)."""
+
 from __future__ import annotations
 
 import argparse
@@ -14,57 +15,96 @@ from ost_ros.commands.args import at_least, leaf, load_scenario_arg
 from ost_ros.errors import UsageError
 from ost_ros.optimal import optimal_schedule, post_search_problem, search_space_order
 
-MAX_OPTIMAL_OBJECTS = 10   # beyond this even the pruned search is hopeless in Python
+MAX_OPTIMAL_OBJECTS = 10  # beyond this even the pruned search is hopeless in Python
 
 
 def register(sub) -> None:
-    p = leaf(sub, "optimal", cmd_optimal, help="exact optimum of the post-search schedule",
-              description="Algorithm Optimal-OST (all object orders × agent groups, pruned) on the "
-                          "scheduling problem left after the whole search, against CCP's "
-                          "Coordination on the same problem (CCP's gap). Small M and N only.")
+    p = leaf(
+        sub,
+        "optimal",
+        cmd_optimal,
+        help="exact optimum of the post-search schedule",
+        description="Algorithm Optimal-OST (all object orders × agent groups, pruned) on the "
+        "scheduling problem left after the whole search, against CCP's "
+        "Coordination on the same problem (CCP's gap). Small M and N only.",
+    )
     p.add_argument("scenario", help="scenario file (YAML)")
     p.add_argument("--agents", type=at_least(1), help="replace the scenario's team by N agents")
-    p.add_argument("--max-nodes", type=at_least(1), default=2_000_000,
-                   help="search budget; if exhausted the best schedule found is reported as "
-                        "not proven (default 2000000)")
+    p.add_argument(
+        "--max-nodes",
+        type=at_least(1),
+        default=2_000_000,
+        help="search budget; if exhausted the best schedule found is reported as "
+        "not proven (default 2000000)",
+    )
     p.add_argument("--json", action="store_true", help="print JSON")
 
-    p = leaf(sub, "reproduce", cmd_reproduce, help="rerun the paper's simulation study",
-              description="The paper's §5 study (Table 1, Figs 7–11, Table 3) from this code: "
-                          "CSVs, PNG plots and report.md with ours vs the paper's numbers.")
+    p = leaf(
+        sub,
+        "reproduce",
+        cmd_reproduce,
+        help="rerun the paper's simulation study",
+        description="The paper's §5 study (Table 1, Figs 7–11, Table 3) from this code: "
+        "CSVs, PNG plots and report.md with ours vs the paper's numbers.",
+    )
     p.add_argument("--out", required=True, help="output directory (created if needed)")
-    p.add_argument("--quick", action="store_true",
-                   help="a subset: N in 10,20,50, M in 1,10,50,100, 2 object sets (< 20 s)")
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="a subset: N in 10,20,50, M in 1,10,50,100, 2 object sets (< 20 s)",
+    )
     p.add_argument("--seed", type=at_least(0), default=1, help="seed of the object sets (1)")
     p.add_argument("--sets", type=at_least(1), help="object sets per M (default 10; quick 2)")
-    p.add_argument("--jobs", type=at_least(1), default=os.cpu_count() or 1,
-                   help="worker processes (default: every core)")
-    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                   help="progress bar on stderr (default: when stderr is a terminal)")
+    p.add_argument(
+        "--jobs", type=at_least(1), default=os.cpu_count() or 1, help="worker processes (default: every core)"
+    )
+    p.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="progress bar on stderr (default: when stderr is a terminal)",
+    )
 
 
 def cmd_optimal(args: argparse.Namespace) -> int:
     scenario = load_scenario_arg(args.scenario, args.agents)
     m, n = scenario.n_objects, scenario.n_agents
     if scenario.heterogeneous:
-        raise UsageError(f"{args.scenario}: the exact search is for unit-speed teams (some agent "
-                         "has a period other than 1)")
+        raise UsageError(
+            f"{args.scenario}: the exact search is for unit-speed teams (some agent "
+            "has a period other than 1)"
+        )
     if m > MAX_OPTIMAL_OBJECTS:
-        raise UsageError(f"{args.scenario}: {m} objects is too many for the exact search (at most "
-                         f"{MAX_OPTIMAL_OBJECTS}; its space is ~10^{search_space_order(m, n):.0f})")
+        raise UsageError(
+            f"{args.scenario}: {m} objects is too many for the exact search (at most "
+            f"{MAX_OPTIMAL_OBJECTS}; its space is ~10^{search_space_order(m, n):.0f})"
+        )
     ids, cost, loc, bases, objects = post_search_problem(scenario)
     r = optimal_schedule(ids, cost, loc, bases, objects, max_nodes=args.max_nodes)
     bound = lower_bound(scenario).value
-    out = {"objects": m, "agents": n, "search_space_order": round(search_space_order(m, n), 2),
-           "free_at": cost[0] if cost else 0, "optimal": r.cost, "proven": r.proven,
-           "nodes": r.nodes, "ccp": r.ccp_cost, "ccp_gap": round(r.gap, 4), "lower_bound": bound,
-           "plan": [{"object": s.object, "agents": list(s.agents), "start": s.start,
-                     "finish": s.finish} for s in r.plan]}
+    out = {
+        "objects": m,
+        "agents": n,
+        "search_space_order": round(search_space_order(m, n), 2),
+        "free_at": cost[0] if cost else 0,
+        "optimal": r.cost,
+        "proven": r.proven,
+        "nodes": r.nodes,
+        "ccp": r.ccp_cost,
+        "ccp_gap": round(r.gap, 4),
+        "lower_bound": bound,
+        "plan": [
+            {"object": s.object, "agents": list(s.agents), "start": s.start, "finish": s.finish}
+            for s in r.plan
+        ],
+    }
     if args.json:
         print(json.dumps(out, indent=1))
         return 0
-    print(f"post-search problem: M={m} objects, N={n} agents, all free at step {out['free_at']} "
-          f"(search space ~10^{out['search_space_order']:.0f})")
+    print(
+        f"post-search problem: M={m} objects, N={n} agents, all free at step {out['free_at']} "
+        f"(search space ~10^{out['search_space_order']:.0f})"
+    )
     print(f"optimal makespan  {r.cost}{'' if r.proven else '  (NOT proven: node budget spent)'}")
     print(f"CCP makespan      {r.ccp_cost}   gap {100 * r.gap:.2f}%")
     print(f"lower bound       {bound}   nodes searched {r.nodes}")
@@ -90,12 +130,16 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     design = Design.quick(args.seed) if args.quick else Design(seed=args.seed)
     if args.sets is not None:
         from dataclasses import replace
+
         design = replace(design, sets=args.sets)
     start = time.perf_counter()
     rows, timing = run_design(design, workers=args.jobs, progress=args.progress)
     report = write_all(out, design, rows, timing, args.quick)
     total = time.perf_counter() - start
-    print(f"{len(rows)} runs in {timing.wall:.1f} s ({timing.cpu:.1f} CPU s, {total:.1f} s with "
-          f"tables and plots, load {timing.load:.1f})", file=sys.stderr)
+    print(
+        f"{len(rows)} runs in {timing.wall:.1f} s ({timing.cpu:.1f} CPU s, {total:.1f} s with "
+        f"tables and plots, load {timing.load:.1f})",
+        file=sys.stderr,
+    )
     print(report)
     return 0

@@ -8,6 +8,7 @@
 
 :func:`simulate` picks one and checks what the protocol can run (the registry).
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -21,12 +22,24 @@ from ost_ros.model import Scenario
 from ost_ros.protocols import check, make_agents
 from ost_ros.result import RunResult
 
-__all__ = ["ENGINES", "StepHook", "check_failures", "choose_engine", "finish_result", "simulate",
-           "simulate_events", "step_limit"]
+__all__ = [
+    "ENGINES",
+    "StepHook",
+    "check_failures",
+    "choose_engine",
+    "finish_result",
+    "simulate",
+    "simulate_events",
+    "step_limit",
+]
 
 
-def check_failures(scenario: Scenario, protocol: str, failures: dict[int, int] | None,
-                   policy: CoordinationPolicy | None = None) -> dict[int, int]:
+def check_failures(
+    scenario: Scenario,
+    protocol: str,
+    failures: dict[int, int] | None,
+    policy: CoordinationPolicy | None = None,
+) -> dict[int, int]:
     """The failures as {agent: step}, checked: team members, steps ≥ 0, a recovering protocol."""
     failures = dict(failures or {})
     if not failures:
@@ -41,9 +54,16 @@ def check_failures(scenario: Scenario, protocol: str, failures: dict[int, int] |
     return failures
 
 
-def simulate(scenario: Scenario, protocol: str = "ccp", policy: CoordinationPolicy | None = None,
-             max_steps: int | None = None, on_step: StepHook | None = None, engine: str = "step",
-             settings: Any = None, failures: dict[int, int] | None = None) -> RunResult:
+def simulate(
+    scenario: Scenario,
+    protocol: str = "ccp",
+    policy: CoordinationPolicy | None = None,
+    max_steps: int | None = None,
+    on_step: StepHook | None = None,
+    engine: str = "step",
+    settings: Any = None,
+    failures: dict[int, int] | None = None,
+) -> RunResult:
     """Run a scenario to completion (or to the step limit) and return the result.
 
     ``on_step(world, actions)`` is called after each step (progress display, tracing, tests);
@@ -55,8 +75,10 @@ def simulate(scenario: Scenario, protocol: str = "ccp", policy: CoordinationPoli
     policy = policy or CoordinationPolicy()
     spec = check(protocol, scenario=scenario, policy=policy)
     failures = check_failures(scenario, protocol, failures, policy)
-    for why, needs_steps in (("robot failures run", bool(failures)),
-                             ("the coordinator organisation runs", policy.centralised)):
+    for why, needs_steps in (
+        ("robot failures run", bool(failures)),
+        ("the coordinator organisation runs", policy.centralised),
+    ):
         if needs_steps and engine == "event":
             raise ValueError(f"{why} on the step engine, not 'event'")
         if needs_steps:
@@ -69,11 +91,17 @@ def simulate(scenario: Scenario, protocol: str = "ccp", policy: CoordinationPoli
             # the reference reports where it stopped
             return simulate(scenario, protocol, policy, max_steps=max_steps, settings=settings)
         return run_events(scenario, make_agents(scenario, protocol, policy, settings), max_steps)
-    return run_steps(scenario, make_agents(scenario, protocol, policy, settings), max_steps, on_step,
-                     failures)
+    return run_steps(
+        scenario, make_agents(scenario, protocol, policy, settings), max_steps, on_step, failures
+    )
 
 
-def simulate_events(scenario: Scenario, protocol: str = "ccp", policy: CoordinationPolicy | None = None,
-                    max_steps: int | None = None, settings: Any = None) -> RunResult:
+def simulate_events(
+    scenario: Scenario,
+    protocol: str = "ccp",
+    policy: CoordinationPolicy | None = None,
+    max_steps: int | None = None,
+    settings: Any = None,
+) -> RunResult:
     """The event engine's run: :func:`simulate` with ``engine="event"``."""
     return simulate(scenario, protocol, policy, max_steps=max_steps, engine="event", settings=settings)

@@ -9,6 +9,7 @@ step only at the steps where something can happen — a find, a search end, a st
 module acts on its own (a trigger, a negotiation round), or messages it sent the step before;
 then each agent's timeline (travel, hold, carry, return) follows from its assignments.
 """
+
 from __future__ import annotations
 
 from functools import lru_cache
@@ -44,13 +45,14 @@ def _sensing(scenario: Scenario) -> tuple[TeamInfo, list[np.ndarray], np.ndarray
     return team, paths, found, (masked == found[None, :]).sum(axis=0)
 
 
-def run_analytic(scenario: Scenario, spec: ProtocolSpec, policy: CoordinationPolicy,
-                 settings: Any = None) -> RunResult:
+def run_analytic(
+    scenario: Scenario, spec: ProtocolSpec, policy: CoordinationPolicy, settings: Any = None
+) -> RunResult:
     """The run of protocol ``spec`` (with a team comm module) computed from its events."""
     assert spec.team_comm is not None
     team, paths, found, finders = _sensing(scenario)
     ids = team.agent_ids
-    lengths = [int(x) for x in team.sweep_lengths()]       # when each search ends
+    lengths = [int(x) for x in team.sweep_lengths()]  # when each search ends
     objs = list(scenario.objects)
 
     events: dict[int, list[AgentMessage]] = {}
@@ -67,8 +69,11 @@ def run_analytic(scenario: Scenario, spec: ProtocolSpec, policy: CoordinationPol
     while True:
         # The next step with news: an event, the module's own next act, or messages in flight.
         due = comm.next_event(t + 1)
-        nxt = [s for s in (pending[k] if k < len(pending) else None, due,
-                           t + 1 if inflight else None) if s is not None]
+        nxt = [
+            s
+            for s in (pending[k] if k < len(pending) else None, due, t + 1 if inflight else None)
+            if s is not None
+        ]
         if not nxt:
             break
         t = min(nxt)
@@ -85,26 +90,35 @@ def run_analytic(scenario: Scenario, spec: ProtocolSpec, policy: CoordinationPol
     know = comm.knowledge
     records = _timelines(team, paths, lengths, closed_at, know.schedule, {o.id: o for o in objs})
     by_obj = {a.object: a for a in know.schedule}
-    objects = [ObjectRecord(o.id, by_obj[o.id].agents, by_obj[o.id].start, by_obj[o.id].finish)
-               for o in objs]
+    objects = [ObjectRecord(o.id, by_obj[o.id].agents, by_obj[o.id].start, by_obj[o.id].finish) for o in objs]
     return RunResult(
         makespan=max(r.finished or 0 for r in records),
         last_delivery=max((a.finish for a in know.schedule), default=0),
-        completed=True, steps=max(r.finished or 0 for r in records) + 1, agents=records,
-        objects=objects, rejections=[], protocol=spec.name, trigger=comm.trigger,
-        predicted_makespan=know.predicted_makespan, coordinations=know.coordinations,
-        messages=int(finders.sum()) + len(ids) + sent, agreement=True,
+        completed=True,
+        steps=max(r.finished or 0 for r in records) + 1,
+        agents=records,
+        objects=objects,
+        rejections=[],
+        protocol=spec.name,
+        trigger=comm.trigger,
+        predicted_makespan=know.predicted_makespan,
+        coordinations=know.coordinations,
+        messages=int(finders.sum()) + len(ids) + sent,
+        agreement=True,
         warnings=[f"agent {comm.me}: {w}" for w in know.warnings],
-        found={o.id: int(found[i]) for i, o in enumerate(objs)}, schedule=list(know.schedule))
+        found={o.id: int(found[i]) for i, o in enumerate(objs)},
+        schedule=list(know.schedule),
+    )
 
 
-def _timelines(team: TeamInfo, paths: list[np.ndarray], lengths: list[int], closed_at: int,
-               schedule: list, objects: dict) -> list[AgentRecord]:
+def _timelines(
+    team: TeamInfo, paths: list[np.ndarray], lengths: list[int], closed_at: int, schedule: list, objects: dict
+) -> list[AgentRecord]:
     """Each agent's account from its assignments (planned = executed): search L_j; travel = the
     walks to its objects and the way home; carry = the carry lengths; finish = max(last delivery,
     the closing step + 1) + the way home; idle = the rest."""
     ids = team.agent_ids
-    walked = [int(x) for x in team.sweep_moves()]          # the cells its search walks
+    walked = [int(x) for x in team.sweep_moves()]  # the cells its search walks
     periods = [int(x) for x in team.period_array()]
     free = list(lengths)
     loc: list[Cell] = [(int(p[-1][0]), int(p[-1][1])) for p in paths]

@@ -1,5 +1,6 @@
 """What every engine shares: the step bound of a run and the result built from the world's
 record plus what the agents know."""
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -20,7 +21,7 @@ def step_limit(scenario: Scenario, failures: int = 0) -> int:
     redo the objects after each failure."""
     team = TeamInfo.from_scenario(scenario)
     span = scenario.grid.width + scenario.grid.height
-    slowest = group_period(scenario.periods)     # a group of every period moves this rarely
+    slowest = group_period(scenario.periods)  # a group of every period moves this rarely
     lengths = team.sweep_lengths()
     search = int(lengths.max()) if not failures else int(lengths.sum()) + scenario.n_agents * span * slowest
     return search + 2 + (failures + 1) * (2 * len(scenario.objects) + 1) * span * slowest
@@ -42,15 +43,20 @@ def finish_result(world: World, agents: Sequence[ProtocolAgent], messages: int) 
     known = [ag.summary() for ag in survivors]
     first = known[0]
     found: dict[int, int] = {}
-    for k in known:   # CCP: everyone knows every find; HCP: each owner knows its own
+    for k in known:  # CCP: everyone knows every find; HCP: each owner knows its own
         for oid, t in k.found.items():
             found[oid] = min(t, found.get(oid, t))
-    result = world.result(protocol=survivors[0].protocol, trigger=first.trigger,
-                          predicted_makespan=first.predicted_makespan,
-                          coordinations=first.coordinations, messages=messages,
-                          agreement=all(k.view == first.view for k in known),
-                          warnings=[f"agent {ag.id}: {w}" for ag, k in zip(survivors, known) for w in k.warnings],
-                          found=dict(sorted(found.items())), schedule=list(first.schedule))
+    result = world.result(
+        protocol=survivors[0].protocol,
+        trigger=first.trigger,
+        predicted_makespan=first.predicted_makespan,
+        coordinations=first.coordinations,
+        messages=messages,
+        agreement=all(k.view == first.view for k in known),
+        warnings=[f"agent {ag.id}: {w}" for ag, k in zip(survivors, known) for w in k.warnings],
+        found=dict(sorted(found.items())),
+        schedule=list(first.schedule),
+    )
     if not result.completed and result.error is None:
         result.error = f"not finished after {world.t} steps (deadlock or step limit)"
     return result

@@ -10,6 +10,7 @@ accounts in bulk. In a step where some agent decides, only the deciders act (wit
 of a carrying group any of them belongs to, so the group pulls together); the others make their
 quiet step in bulk. A message invalidates every agent's plan.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -25,7 +26,7 @@ from ost_ros.result import RunResult
 from ost_ros.sensing import first_sensing
 from ost_ros.world import World
 
-Quiet = tuple[pl.Segment, int | None] | None   # an agent's settled first segment and its length
+Quiet = tuple[pl.Segment, int | None] | None  # an agent's settled first segment and its length
 
 
 @dataclass
@@ -47,8 +48,12 @@ class _Hits:
         hit = self._cache.get(key)
         if hit is None or hit[0] is not path:
             idx = first_sensing(np.asarray(path, dtype=np.int64).reshape(-1, 2), self.cells)
-            hit = (path, sorted(((int(i), o) for i, o in zip(idx, self.objects) if i >= 0),
-                                key=lambda h: (h[0], h[1].id)))
+            hit = (
+                path,
+                sorted(
+                    ((int(i), o) for i, o in zip(idx, self.objects) if i >= 0), key=lambda h: (h[0], h[1].id)
+                ),
+            )
             self._cache[key] = hit
         return hit[1]
 
@@ -74,8 +79,14 @@ def _quiet(agent: ProtocolAgent, world: World, hits: _Hits) -> Quiet:
     return None if steps is not None and steps <= 0 else (seg, steps)
 
 
-def _plans(agents: list[ProtocolAgent], world: World, hits: _Hits, cache: list[Quiet],
-           fresh: list[bool], wakes: list[int | None]) -> list[Quiet]:
+def _plans(
+    agents: list[ProtocolAgent],
+    world: World,
+    hits: _Hits,
+    cache: list[Quiet],
+    fresh: list[bool],
+    wakes: list[int | None],
+) -> list[Quiet]:
     """Per agent its quiet segment, or None if it acts for real this step. ``cache`` holds
     still-valid ones (``fresh`` False) and is updated in place, with each agent's next comm event."""
     groups: dict[int, list[int]] = {}
@@ -166,7 +177,7 @@ def run_events(scenario: Scenario, agents: list[ProtocolAgent], max_steps: int |
             _advance(agents, plans, world, k)
             _age(cache, fresh, plans, t, k)
             world.pass_steps(k)
-            for j, w in enumerate(wakes):   # a comm module acting on its own in the last step
+            for j, w in enumerate(wakes):  # a comm module acting on its own in the last step
                 if w == t + k - 1:
                     agents[j].communicate(w, [])
                     fresh[j] = True
@@ -177,13 +188,17 @@ def run_events(scenario: Scenario, agents: list[ProtocolAgent], max_steps: int |
         actions: list[Action] = [ag.act(world.observe(ag.id)) for ag, a in zip(agents, acting) if a]
         inbox: list[AgentMessage] = [m for ag, a in zip(agents, acting) if a for m in ag.outbox()]
         messages += len(inbox)
-        for j, ag in enumerate(agents):   # an empty step changes no one's knowledge, unless due
+        for j, ag in enumerate(agents):  # an empty step changes no one's knowledge, unless due
             if inbox or wakes[j] == t:
                 ag.communicate(t, inbox)
-        _advance([ag for ag, a in zip(agents, acting) if not a],
-                 [q for q, a in zip(plans, acting) if not a], world, 1)
+        _advance(
+            [ag for ag, a in zip(agents, acting) if not a],
+            [q for q, a in zip(plans, acting) if not a],
+            world,
+            1,
+        )
         if inbox:
-            fresh[:] = [True] * n            # messages may change anyone's plan
+            fresh[:] = [True] * n  # messages may change anyone's plan
         else:
             _age(cache, fresh, plans, t, 1)  # deciders (None) are planned afresh
             for j in range(n):

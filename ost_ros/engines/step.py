@@ -8,6 +8,7 @@ Robot failures (``failures = {agent: step}``): from that step on the agent neith
 sends; the world's :class:`AgentLost` notice joins the inbox of that step, after every agent's
 messages — exactly where the ROS world node puts it (``Tick.failed``).
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -22,8 +23,13 @@ from ost_ros.world import World
 StepHook = Callable[[World, list[Action]], None]
 
 
-def run_steps(scenario: Scenario, agents: list[ProtocolAgent], max_steps: int | None = None,
-              on_step: StepHook | None = None, failures: dict[int, int] | None = None) -> RunResult:
+def run_steps(
+    scenario: Scenario,
+    agents: list[ProtocolAgent],
+    max_steps: int | None = None,
+    on_step: StepHook | None = None,
+    failures: dict[int, int] | None = None,
+) -> RunResult:
     """Step ``agents`` through the scenario to completion (or the step limit)."""
     failures = failures or {}
     world = World(scenario)

@@ -8,20 +8,36 @@ Offers travel as plain data (``messages``) so a transport can carry them unchang
 
 Names are imported lazily so that ``ost --help`` does not pay for shapely and numpy.
 """
+
 from __future__ import annotations
 
 import importlib
 from typing import Any
 
 _EXPORTS = {
-    "NegotiationError": "errors", "AreaTask": "tasks", "TargetTask": "tasks",
-    "make_task_polygon": "tasks", "AreaReward": "rewards", "TargetReward": "rewards",
-    "global_coverage": "rewards", "rubinstein_share": "protocol", "predicted_share": "protocol",
-    "estimate_discount": "protocol", "claim_size": "protocol", "AgentSpec": "agents",
-    "NegotiationResult": "multiparty", "negotiate": "multiparty", "Offer": "messages",
-    "AreaSearch": "proposals", "optimal_allocation": "optimal",
-    "SearchRobot": "partition", "SearchTeam": "partition", "negotiate_partition": "partition",
-    "negotiated_scenario": "partition", "SlotNegotiation": "slots", "NegotiationSettings": "slots",
+    "NegotiationError": "errors",
+    "AreaTask": "tasks",
+    "TargetTask": "tasks",
+    "make_task_polygon": "tasks",
+    "AreaReward": "rewards",
+    "TargetReward": "rewards",
+    "global_coverage": "rewards",
+    "rubinstein_share": "protocol",
+    "predicted_share": "protocol",
+    "estimate_discount": "protocol",
+    "claim_size": "protocol",
+    "AgentSpec": "agents",
+    "NegotiationResult": "multiparty",
+    "negotiate": "multiparty",
+    "Offer": "messages",
+    "AreaSearch": "proposals",
+    "optimal_allocation": "optimal",
+    "SearchRobot": "partition",
+    "SearchTeam": "partition",
+    "negotiate_partition": "partition",
+    "negotiated_scenario": "partition",
+    "SlotNegotiation": "slots",
+    "NegotiationSettings": "slots",
     "negotiate_slots": "slots",
 }
 __all__ = sorted(_EXPORTS)

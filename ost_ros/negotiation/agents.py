@@ -4,6 +4,7 @@ An agent only ever sees its partners' current claims (decoded from their message
 answers with a decision: a new offer, accepting the partner's offer (it then takes what the
 others left), or leaving with its current claim (the exit option).
 """
+
 from __future__ import annotations
 
 import math
@@ -37,8 +38,8 @@ class AgentSpec:
 class Decision:
     """What an agent does on its turn."""
 
-    kind: str          # "offer" | "accept" | "exit"
-    claim: object      # the agent's claim after this turn (geometry or index set)
+    kind: str  # "offer" | "accept" | "exit"
+    claim: object  # the agent's claim after this turn (geometry or index set)
 
 
 @dataclass
@@ -52,7 +53,7 @@ class AreaNegotiator:
     first: bool
     rng: np.random.Generator
     search: AreaSearch = field(default_factory=AreaSearch)
-    exit_overlap: float = 0.02    # exit when own overlap ≤ this fraction of dim(T0)
+    exit_overlap: float = 0.02  # exit when own overlap ≤ this fraction of dim(T0)
 
     def __post_init__(self) -> None:
         reward = self.spec.reward or AreaReward()
@@ -80,8 +81,14 @@ class AreaNegotiator:
         best = max(pieces, key=lambda p: (p.intersection(self.claim).area, p.area))
         return hole_free(best)
 
-    def turn(self, others: Sequence[Polygon], opponents: Sequence[Polygon], bilateral: bool,
-             alone: bool = False, fixed: Sequence[Polygon] = ()) -> Decision:
+    def turn(
+        self,
+        others: Sequence[Polygon],
+        opponents: Sequence[Polygon],
+        bilateral: bool,
+        alone: bool = False,
+        fixed: Sequence[Polygon] = (),
+    ) -> Decision:
         """One turn. others: every other agent's current claim (incl. those who left);
         opponents: the claims this turn answers (all others, or one in all-against-all);
         bilateral: exactly one partner still negotiating; alone: nobody else is; fixed: the
@@ -121,8 +128,9 @@ class AreaNegotiator:
         if bilateral:
             # Rubinstein's test (§3.2.3) — or the claims no longer collide: accept the
             # partner's offer and take the rest (leaving would strand what it cannot take)
-            if feasible and (self.state.accepts(self.task.dim(got) / size)
-                             or own_overlap <= self.exit_overlap * size):
+            if feasible and (
+                self.state.accepts(self.task.dim(got) / size) or own_overlap <= self.exit_overlap * size
+            ):
                 self.claim = got
                 return Decision("accept", got)
         elif own_overlap <= self.exit_overlap * size and feasible:
@@ -130,8 +138,9 @@ class AreaNegotiator:
             self.claim = got
             return Decision("exit", got)
         cap = self.state.next_claim() * size
-        self.claim = propose_area(self.task, self.reward, self.claim, cap, list(others), self.rng,
-                                  self.search, region)
+        self.claim = propose_area(
+            self.task, self.reward, self.claim, cap, list(others), self.rng, self.search, region
+        )
         self.state.record_claim(self.task.dim(self.claim) / size)
         return Decision("offer", self.claim)
 
@@ -157,8 +166,14 @@ class TargetNegotiator:
         self.claim: frozenset[int] = frozenset()
         self.prediction: float | None = None
 
-    def turn(self, others: Sequence[frozenset[int]], opponents: Sequence[frozenset[int]],
-             bilateral: bool, alone: bool = False, fixed: Sequence[frozenset[int]] = ()) -> Decision:
+    def turn(
+        self,
+        others: Sequence[frozenset[int]],
+        opponents: Sequence[frozenset[int]],
+        bilateral: bool,
+        alone: bool = False,
+        fixed: Sequence[frozenset[int]] = (),
+    ) -> Decision:
         if self.state.offers_made == 0:
             self.state.next_claim()
             # the biggest share this robot can take: everything it is allowed to visit

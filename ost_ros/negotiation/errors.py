@@ -1,4 +1,5 @@
 """The library's one error type: bad input, with a one-line message naming the problem."""
+
 from __future__ import annotations
 
 

@@ -4,6 +4,7 @@ Everything is ints, floats, strings and lists of floats, so a message survives J
 sequence<double> unchanged. The task type decodes ``params`` (polygon vertices x1,y1,x2,y2,...
 or claimed target coordinates) — partners never see each other's private rewards.
 """
+
 from __future__ import annotations
 
 import math
@@ -40,15 +41,26 @@ class Offer:
             raise NegotiationError("offer params must be finite numbers")
 
     def to_dict(self) -> dict[str, Any]:
-        return {"round": self.round, "period": self.period, "sender": self.sender,
-                "receiver": self.receiver, "kind": self.kind, "params": [float(v) for v in self.params]}
+        return {
+            "round": self.round,
+            "period": self.period,
+            "sender": self.sender,
+            "receiver": self.receiver,
+            "kind": self.kind,
+            "params": [float(v) for v in self.params],
+        }
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Offer:
         try:
-            return cls(round=int(data["round"]), period=int(data["period"]), sender=int(data["sender"]),
-                       receiver=int(data.get("receiver", BROADCAST)), kind=str(data["kind"]),
-                       params=tuple(float(v) for v in data.get("params", ())))
+            return cls(
+                round=int(data["round"]),
+                period=int(data["period"]),
+                sender=int(data["sender"]),
+                receiver=int(data.get("receiver", BROADCAST)),
+                kind=str(data["kind"]),
+                params=tuple(float(v) for v in data.get("params", ())),
+            )
         except (KeyError, TypeError, ValueError) as exc:
             if isinstance(exc, NegotiationError):
                 raise

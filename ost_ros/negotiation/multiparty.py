@@ -4,6 +4,7 @@ option, and "all against all" as a comparison. Also the single entry point ``neg
 Agents interact only through ``Offer`` messages: each claim is encoded to numbers by the
 task type and decoded by the receiver, exactly what a transport would carry.
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -29,7 +30,7 @@ class NegotiationResult:
 
     task: AreaTask | TargetTask
     shares: list
-    status: str                 # "agreed" (everyone accepted/left) or "timeout"
+    status: str  # "agreed" (everyone accepted/left) or "timeout"
     rounds: int
     messages: int
     trace: list[dict[str, Any]] = field(default_factory=list)
@@ -42,31 +43,53 @@ class NegotiationResult:
         overlap = sum(t.dim(t.overlap(a, b)) for a, b in combinations(inside, 2))
         covered = t.dim(t.union(inside))
         out = t.dim(t.outside(t.union(list(self.shares))))
-        return {"overlap": overlap / t.size, "G": global_coverage(t, self.shares),
-                "covered": covered / t.size, "out": out / t.size, "rounds": float(self.rounds)}
+        return {
+            "overlap": overlap / t.size,
+            "G": global_coverage(t, self.shares),
+            "covered": covered / t.size,
+            "out": out / t.size,
+            "rounds": float(self.rounds),
+        }
 
     def to_dict(self) -> dict[str, Any]:
-        return {"task": self.task.kind, "status": self.status, "rounds": self.rounds,
-                "messages": self.messages, "metrics": self.metrics(),
-                "shares": [list(self.task.encode(s)) for s in self.shares]}
+        return {
+            "task": self.task.kind,
+            "status": self.status,
+            "rounds": self.rounds,
+            "messages": self.messages,
+            "metrics": self.metrics(),
+            "shares": [list(self.task.encode(s)) for s in self.shares],
+        }
 
 
-def _snapshot(task, claims: list, exited: set[int], period: int, rnd: int, agent: int,
-              kind: str, predictions: list) -> dict[str, Any]:
+def _snapshot(
+    task, claims: list, exited: set[int], period: int, rnd: int, agent: int, kind: str, predictions: list
+) -> dict[str, Any]:
     inside = [task.inside(c) for c in claims]
     return {
-        "round": rnd, "period": period, "agent": agent, "kind": kind,
+        "round": rnd,
+        "period": period,
+        "agent": agent,
+        "kind": kind,
         "shares": [task.dim(c) / task.size for c in inside],
         "predictions": list(predictions),
         "overlap": sum(task.dim(task.overlap(a, b)) for a, b in combinations(inside, 2)) / task.size,
-        "G": global_coverage(task, claims), "exited": sorted(exited),
+        "G": global_coverage(task, claims),
+        "exited": sorted(exited),
     }
 
 
-def negotiate(task: AreaTask | TargetTask, agents: Sequence[AgentSpec], strategy: str = "rounds",
-              seed: int = 0, max_rounds: int = 400, search: AreaSearch | None = None,
-              drop_rule: str = "farthest", exit_overlap: float = 0.02,
-              trace: bool = True) -> NegotiationResult:
+def negotiate(
+    task: AreaTask | TargetTask,
+    agents: Sequence[AgentSpec],
+    strategy: str = "rounds",
+    seed: int = 0,
+    max_rounds: int = 400,
+    search: AreaSearch | None = None,
+    drop_rule: str = "farthest",
+    exit_overlap: float = 0.02,
+    trace: bool = True,
+) -> NegotiationResult:
     """Negotiate a subdivision of ``task`` among ``agents``; same seed → same result.
 
     exit_overlap: an area agent leaves once its claim overlaps the others' by at most this
@@ -92,18 +115,27 @@ def negotiate(task: AreaTask | TargetTask, agents: Sequence[AgentSpec], strategy
     else:
         rnd = max_rounds - 1
     status = "agreed" if len(session.exited) == session.size else "timeout"
-    return NegotiationResult(task, session.claims_now(), status, rnd + 1, len(session.log),
-                             session.snaps, session.log)
+    return NegotiationResult(
+        task, session.claims_now(), status, rnd + 1, len(session.log), session.snaps, session.log
+    )
 
 
-def _negotiators(task: AreaTask | TargetTask, agents: Sequence[AgentSpec], seed: int,
-                 search: AreaSearch | None, drop_rule: str, exit_overlap: float) -> list:
+def _negotiators(
+    task: AreaTask | TargetTask,
+    agents: Sequence[AgentSpec],
+    seed: int,
+    search: AreaSearch | None,
+    drop_rule: str,
+    exit_overlap: float,
+) -> list:
     rngs = np.random.default_rng(seed).spawn(len(agents))
     if isinstance(task, AreaTask):
         if not 0.0 <= exit_overlap < 1.0:
             raise NegotiationError(f"exit_overlap must be in [0, 1), got {exit_overlap:g}")
-        return [AreaNegotiator(i, a, task, i == 0, rngs[i], search or AreaSearch(), exit_overlap)
-                for i, a in enumerate(agents)]
+        return [
+            AreaNegotiator(i, a, task, i == 0, rngs[i], search or AreaSearch(), exit_overlap)
+            for i, a in enumerate(agents)
+        ]
     if isinstance(task, TargetTask):
         return [TargetNegotiator(i, a, task, i == 0, rngs[i], drop_rule) for i, a in enumerate(agents)]
     raise NegotiationError(f"unknown task type {type(task).__name__}")
@@ -126,7 +158,7 @@ class _Session:
     def send(self, rnd: int, sender: int, receiver: int, kind: str, claim: Any) -> None:
         task = self.task
         msg = Offer(rnd, self.period, sender, receiver, kind, task.encode(claim) if claim is not None else ())
-        self.log.append(Offer.from_dict(msg.to_dict()))   # the wire format, round-tripped
+        self.log.append(Offer.from_dict(msg.to_dict()))  # the wire format, round-tripped
         self.public[sender] = task.decode(self.log[-1].params)
         self.period += 1
 
@@ -176,5 +208,15 @@ class _Session:
         else:
             self.send(rnd, i, BROADCAST if j is None else j, "offer", d.claim)
         if self.trace:
-            self.snaps.append(_snapshot(self.task, self.claims_now(), exited, self.period, rnd, i,
-                                        d.kind, [n.prediction for n in self.negs]))
+            self.snaps.append(
+                _snapshot(
+                    self.task,
+                    self.claims_now(),
+                    exited,
+                    self.period,
+                    rnd,
+                    i,
+                    d.kind,
+                    [n.prediction for n in self.negs],
+                )
+            )

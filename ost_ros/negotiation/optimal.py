@@ -6,6 +6,7 @@ bound over target→robot assignments, pruning a branch as soon as its partial c
 can only grow as targets are added (triangle inequality) — reaches the best complete one.
 Robots sharing a start are interchangeable, so an empty robot is only tried once.
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -71,14 +72,15 @@ class Allocation:
         return float(max(self.lengths)) if self.lengths else 0.0
 
 
-def evaluate_allocation(starts: np.ndarray, points: np.ndarray, shares: Sequence[frozenset[int]]) -> Allocation:
+def evaluate_allocation(
+    starts: np.ndarray, points: np.ndarray, shares: Sequence[frozenset[int]]
+) -> Allocation:
     """Route lengths of a given allocation, each robot taking its optimal route."""
     lengths = tuple(route_length(s, np.asarray(points)[sorted(sh)]) for s, sh in zip(starts, shares))
     return Allocation(tuple(frozenset(s) for s in shares), lengths)
 
 
-def optimal_allocation(starts: ArrayLike, points: ArrayLike,
-                       objective: str = "total") -> Allocation:
+def optimal_allocation(starts: ArrayLike, points: ArrayLike, objective: str = "total") -> Allocation:
     """Exact optimum over all assignments: objective "total" (sum of route lengths) or
     "max" (longest individual route, i.e. mission time)."""
     if objective not in ("total", "max"):
@@ -128,8 +130,7 @@ def optimal_allocation(starts: ArrayLike, points: ArrayLike,
     return Allocation(shares, tuple(float(cost[i][m]) for i, m in enumerate(best_masks)))
 
 
-def brute_force_allocation(starts: ArrayLike, points: ArrayLike,
-                           objective: str = "total") -> float:
+def brute_force_allocation(starts: ArrayLike, points: ArrayLike, objective: str = "total") -> float:
     """Reference for tests: every assignment, every visiting order. Tiny cases only."""
     st = np.asarray(starts, dtype=float).reshape(-1, 2)
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
@@ -138,9 +139,17 @@ def brute_force_allocation(starts: ArrayLike, points: ArrayLike,
         lengths = []
         for i, s in enumerate(st):
             mine = [j for j, a in enumerate(assign) if a == i]
-            bl = 0.0 if not mine else min(
-                sum(np.hypot(*(b - a)) for a, b in zip([s] + [pts[k] for k in perm], [pts[k] for k in perm]))
-                for perm in permutations(mine))
+            bl = (
+                0.0
+                if not mine
+                else min(
+                    sum(
+                        np.hypot(*(b - a))
+                        for a, b in zip([s] + [pts[k] for k in perm], [pts[k] for k in perm])
+                    )
+                    for perm in permutations(mine)
+                )
+            )
             lengths.append(bl)
         v = sum(lengths) if objective == "total" else max(lengths)
         best = min(best, v)

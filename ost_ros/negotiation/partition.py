@@ -17,6 +17,7 @@ partition. Steps:
    at one cell per ``period`` steps (the OST's clock, ``search_time``); the team's search time is
    the slowest robot's. The paper's equal partition (``ost_ros.partition``) is timed the same way.
 """
+
 from __future__ import annotations
 
 import math
@@ -39,7 +40,7 @@ from .rewards import AreaReward
 from .tasks import AreaTask
 
 Cell = tuple[int, int]
-Rect = tuple[int, int, int, int]   # x0, y0, x1, y1 in cells, inclusive
+Rect = tuple[int, int, int, int]  # x0, y0, x1, y1 in cells, inclusive
 
 RULES = ("patience", "reward")
 TEAM_KEYS = ("grid", "robots", "delta", "seed", "max_rounds", "rule")
@@ -83,8 +84,9 @@ class SearchTeam:
         if not self.robots:
             raise NegotiationError("need at least one robot")
         if len(self.robots) > self.width * self.height:
-            raise NegotiationError(f"{len(self.robots)} robots for a {self.width}x{self.height} grid: "
-                                   "more robots than cells")
+            raise NegotiationError(
+                f"{len(self.robots)} robots for a {self.width}x{self.height} grid: more robots than cells"
+            )
         ids = [r.id for r in self.robots]
         if len(set(ids)) != len(ids):
             raise NegotiationError(f"robot ids must be unique, got {ids}")
@@ -115,7 +117,7 @@ class SearchTeam:
         ok = np.ones((len(self.robots), self.height, self.width), dtype=bool)
         for i, r in enumerate(self.robots):
             for x0, y0, x1, y1 in r.forbidden:
-                ok[i, y0:y1 + 1, x0:x1 + 1] = False
+                ok[i, y0 : y1 + 1, x0 : x1 + 1] = False
         return ok
 
     @classmethod
@@ -146,21 +148,41 @@ class SearchTeam:
                         raise FieldError(f"{where}.forbidden[{k}]: expected [x0, y0, x1, y1], got {z!r}")
                     x0, y0, x1, y1 = (integer(v, f"{where}.forbidden[{k}]", 0) for v in z)
                     zones.append((x0, y0, x1, y1))
-                robots.append(SearchRobot(integer(e.get("id", i), f"{where}.id", 0),
-                                          integer(e.get("period", 1), f"{where}.period", 1), tuple(zones)))
+                robots.append(
+                    SearchRobot(
+                        integer(e.get("id", i), f"{where}.id", 0),
+                        integer(e.get("period", 1), f"{where}.period", 1),
+                        tuple(zones),
+                    )
+                )
             delta = spec.get("delta", 0.95)
             if isinstance(delta, bool) or not isinstance(delta, (int, float)):
                 raise FieldError(f"delta: expected a number, got {delta!r}")
-            return cls(width, height, tuple(robots), float(delta),
-                       integer(spec.get("seed", 0), "seed", 0), integer(spec.get("max_rounds", 200), "max_rounds", 1),
-                       str(spec.get("rule", "patience")))
+            return cls(
+                width,
+                height,
+                tuple(robots),
+                float(delta),
+                integer(spec.get("seed", 0), "seed", 0),
+                integer(spec.get("max_rounds", 200), "max_rounds", 1),
+                str(spec.get("rule", "patience")),
+            )
         except FieldError as exc:
             raise NegotiationError(str(exc)) from None
 
 
-def apply_flags(spec: dict[str, Any], *, width: int | None = None, height: int | None = None,
-                robots: int | None = None, periods: str | None = None, delta: float | None = None,
-                seed: int | None = None, max_rounds: int | None = None, rule: str | None = None) -> dict[str, Any]:
+def apply_flags(
+    spec: dict[str, Any],
+    *,
+    width: int | None = None,
+    height: int | None = None,
+    robots: int | None = None,
+    periods: str | None = None,
+    delta: float | None = None,
+    seed: int | None = None,
+    max_rounds: int | None = None,
+    rule: str | None = None,
+) -> dict[str, Any]:
     """The team file's dict with command-line flags laid over it (None = flag not given).
 
     ``periods`` ("1,2,1") sets every robot's period; with a robot list in the file its length
@@ -178,14 +200,20 @@ def apply_flags(spec: dict[str, Any], *, width: int | None = None, height: int |
         try:
             plist = [int(p) for p in periods.split(",")]
         except ValueError:
-            raise NegotiationError(f"--periods must be integers separated by commas, got {periods!r}") from None
+            raise NegotiationError(
+                f"--periods must be integers separated by commas, got {periods!r}"
+            ) from None
     entries = out.get("robots")
     if isinstance(entries, list):
         if robots is not None and robots != len(entries):
-            raise NegotiationError(f"--robots {robots} does not match the {len(entries)} robots in the team file")
+            raise NegotiationError(
+                f"--robots {robots} does not match the {len(entries)} robots in the team file"
+            )
         if plist is not None:
             if len(plist) != len(entries):
-                raise NegotiationError(f"got {len(plist)} periods for the {len(entries)} robots in the team file")
+                raise NegotiationError(
+                    f"got {len(plist)} periods for the {len(entries)} robots in the team file"
+                )
             out["robots"] = [dict(e, period=p) if isinstance(e, dict) else e for e, p in zip(entries, plist)]
     else:
         n = robots if robots is not None else len(plist) if plist is not None else entries
@@ -213,8 +241,9 @@ def _check_rect(z: Sequence[int], what: str, width: int, height: int) -> None:
         raise NegotiationError(f"{what}: expected four integers [x0, y0, x1, y1], got {list(z)!r}")
     x0, y0, x1, y1 = z
     if not (0 <= x0 <= x1 < width and 0 <= y0 <= y1 < height):
-        raise NegotiationError(f"{what}: [{x0}, {y0}, {x1}, {y1}] must satisfy 0 ≤ x0 ≤ x1 < {width} "
-                               f"and 0 ≤ y0 ≤ y1 < {height}")
+        raise NegotiationError(
+            f"{what}: [{x0}, {y0}, {x1}, {y1}] must satisfy 0 ≤ x0 ≤ x1 < {width} and 0 ≤ y0 ≤ y1 < {height}"
+        )
 
 
 # ------------------------------------------------------------------ negotiation set-up ----------
@@ -232,11 +261,11 @@ class SearchReward(AreaReward):
       a smaller claim pay.
     """
 
-    cell: float = 0.0                  # one cell's side in task units (0: no banding, plain box)
+    cell: float = 0.0  # one cell's side in task units (0: no banding, plain box)
     w_rect: float = 0.5
     target: float | None = None
     w_size: float = 3.0
-    w_ill: float = 0.0                 # see negotiation_setup
+    w_ill: float = 0.0  # see negotiation_setup
 
     def swept(self, bounds: np.ndarray) -> np.ndarray:
         """Swept area of the bounding boxes (rows: minx, miny, maxx, maxy)."""
@@ -249,8 +278,11 @@ class SearchReward(AreaReward):
 
     def terms(self, task: AreaTask, share, others) -> dict[str, float]:
         t = super().terms(task, share, others)
-        t["waste"] = (0.0 if share.is_empty else
-                      max(0.0, float(self.swept(np.array([share.bounds]))[0]) - float(share.area)))
+        t["waste"] = (
+            0.0
+            if share.is_empty
+            else max(0.0, float(self.swept(np.array([share.bounds]))[0]) - float(share.area))
+        )
         t["size"] = 0.0 if self.target is None else abs(task.dim(task.inside(share)) - self.target)
         return t
 
@@ -286,8 +318,9 @@ def forbidden_polygon(zones: Sequence[Rect], scale: float):
     """A robot's forbidden cells as one geometry in task units (None if it has none)."""
     if not zones:
         return None
-    return shapely.union_all([box(x0 * scale, y0 * scale, (x1 + 1) * scale, (y1 + 1) * scale)
-                              for x0, y0, x1, y1 in zones])
+    return shapely.union_all(
+        [box(x0 * scale, y0 * scale, (x1 + 1) * scale, (y1 + 1) * scale) for x0, y0, x1, y1 in zones]
+    )
 
 
 @dataclass(frozen=True)
@@ -298,7 +331,7 @@ class NegotiationSetup:
     task: AreaTask
     agents: tuple[AgentSpec, ...]
     search: AreaSearch
-    targets: tuple[float, ...]        # fraction of the grid per robot
+    targets: tuple[float, ...]  # fraction of the grid per robot
 
 
 def negotiation_setup(team: SearchTeam) -> NegotiationSetup:
@@ -322,7 +355,7 @@ def negotiation_setup(team: SearchTeam) -> NegotiationSetup:
         search = AreaSearch(min_scale=0.5)
     agents = []
     for r, d, t in zip(team.robots, deltas, shares):
-        zone = forbidden_polygon(r.forbidden, s)   # private: only this robot's reward holds it
+        zone = forbidden_polygon(r.forbidden, s)  # private: only this robot's reward holds it
         target = None if team.rule == "patience" else float(t / shares.max()) * task.size
         reward = SearchReward(forbidden=zone, cell=s, target=target)
         agents.append(AgentSpec(float(d), reward, name=f"robot {r.id}"))
@@ -344,11 +377,11 @@ def rasterise(shares: Sequence, width: int, height: int, scale: float) -> np.nda
 class Resolution:
     """The final owner map and how many cells each rule settled."""
 
-    owner: np.ndarray      # (H, W) robot index (list order)
-    fragments: int         # claimed cells cut off from their claimant's main piece, released
-    unclaimed: int         # no polygon held the centre
-    contested: int         # two or more polygons did
-    forbidden: int         # the only claimant may not take it
+    owner: np.ndarray  # (H, W) robot index (list order)
+    fragments: int  # claimed cells cut off from their claimant's main piece, released
+    unclaimed: int  # no polygon held the centre
+    contested: int  # two or more polygons did
+    forbidden: int  # the only claimant may not take it
 
 
 def resolve(claims: np.ndarray, allowed: np.ndarray, periods: Sequence[int]) -> Resolution:
@@ -372,10 +405,10 @@ def resolve(claims: np.ndarray, allowed: np.ndarray, periods: Sequence[int]) -> 
     claims = claims.copy()
     fragments = 0
     for i in range(r_n):
-        labels, n = ndimage.label(claims[i])   # default structure: 4-connectivity
+        labels, n = ndimage.label(claims[i])  # default structure: 4-connectivity
         if n > 1:
             sizes = np.bincount(labels.ravel(), minlength=n + 1)[1:]
-            keep = labels == 1 + int(np.argmax(sizes))   # largest; ties to the first in row-major order
+            keep = labels == 1 + int(np.argmax(sizes))  # largest; ties to the first in row-major order
             fragments += int((claims[i] & ~keep).sum())
             claims[i] = keep
     n_claims = claims.sum(axis=0)
@@ -384,7 +417,7 @@ def resolve(claims: np.ndarray, allowed: np.ndarray, periods: Sequence[int]) -> 
     load = period * np.bincount(owner[owner >= 0], minlength=r_n)
 
     def take(y: int, x: int, cands: np.ndarray) -> None:
-        k = int(cands[np.argmin(load[cands])])   # argmin: first (lowest index) on ties
+        k = int(cands[np.argmin(load[cands])])  # argmin: first (lowest index) on ties
         owner[y, x] = k
         load[k] += period[k]
 
@@ -397,13 +430,16 @@ def resolve(claims: np.ndarray, allowed: np.ndarray, periods: Sequence[int]) -> 
                 take(y, x, cands)
         elif n_claims[y, x] == 1:
             forbidden += 1
-    unclaimed = int((n_claims == 0).sum())   # released fragments included
+    unclaimed = int((n_claims == 0).sum())  # released fragments included
     while (owner < 0).any():
         snap = owner.copy()
         progress = False
         for y, x in np.argwhere(snap < 0):
-            near = {snap[y + dy, x + dx] for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1))
-                    if 0 <= y + dy < h and 0 <= x + dx < w and snap[y + dy, x + dx] >= 0}
+            near = {
+                snap[y + dy, x + dx]
+                for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1))
+                if 0 <= y + dy < h and 0 <= x + dx < w and snap[y + dy, x + dx] >= 0
+            }
             cands = np.array(sorted(k for k in near if allowed[k, y, x]), dtype=int)
             if len(cands):
                 take(y, x, cands)
@@ -434,7 +470,7 @@ def region_sweep(mask: np.ndarray) -> list[Cell]:
     for offset in (0, 1, 2):
         bands = []
         for top in range(y_first - offset, y_last + 1, 3):
-            cols = np.flatnonzero(mask[max(top, 0):top + 3].any(axis=0))
+            cols = np.flatnonzero(mask[max(top, 0) : top + 3].any(axis=0))
             if len(cols):
                 bands.append((min(max(top + 1, y_first), y_last), int(cols[0]), int(cols[-1])))
         for flip in (0, 1):
@@ -476,10 +512,10 @@ class RobotOutcome:
 
     id: int
     period: int
-    target: float          # speed-proportional fraction of the grid
+    target: float  # speed-proportional fraction of the grid
     cells: int
-    moves: int             # sweep length
-    search_time: int       # steps to sweep, ``search_time(moves, period)``
+    moves: int  # sweep length
+    search_time: int  # steps to sweep, ``search_time(moves, period)``
     equal_cells: int
     equal_search_time: int
     equal_violations: int  # cells of its forbidden zones inside its equal rectangle
@@ -517,13 +553,21 @@ class PartitionResult:
     def to_dict(self) -> dict[str, Any]:
         t = self.team
         return {
-            "grid": {"width": t.width, "height": t.height}, "scale": t.scale, "rule": t.rule,
-            "delta": t.delta, "seed": t.seed,
+            "grid": {"width": t.width, "height": t.height},
+            "scale": t.scale,
+            "rule": t.rule,
+            "delta": t.delta,
+            "seed": t.seed,
             "discounts": [a.delta for a in self.setup.agents],
-            "status": self.negotiation.status, "rounds": self.negotiation.rounds,
+            "status": self.negotiation.status,
+            "rounds": self.negotiation.rounds,
             "messages": self.negotiation.messages,
-            "resolved": {"fragments": self.resolution.fragments, "unclaimed": self.resolution.unclaimed,
-                         "contested": self.resolution.contested, "forbidden": self.resolution.forbidden},
+            "resolved": {
+                "fragments": self.resolution.fragments,
+                "unclaimed": self.resolution.unclaimed,
+                "contested": self.resolution.contested,
+                "forbidden": self.resolution.forbidden,
+            },
             "equal_partition": list(self.equal_partition),
             "robots": [r.to_dict() for r in self.robots],
             "team_search_time": {"negotiated": self.team_time, "equal": self.equal_team_time},
@@ -535,21 +579,28 @@ class PartitionResult:
         """The text report."""
         t, n = self.team, self.negotiation
         z = self.resolution
-        lines = [f"{t.width}x{t.height} grid, {len(t.robots)} robots, rule {t.rule}, δ_max {t.delta:g}, "
-                 f"seed {t.seed}: {n.status} after {n.rounds} rounds, {n.messages} messages, "
-                 f"{self.elapsed_s:.2f} s",
-                 f"resolved cells: {z.fragments} cut off from their claim, {z.unclaimed} unclaimed, "
-                 f"{z.contested} contested, {z.forbidden} forbidden to their claimant",
-                 "",
-                 f"{'robot':>5} {'period':>6} {'target %':>8} {'cells':>6} {'time':>6} │ "
-                 f"{'equal cells':>11} {'equal time':>10} {'violations':>10}"]
+        lines = [
+            f"{t.width}x{t.height} grid, {len(t.robots)} robots, rule {t.rule}, δ_max {t.delta:g}, "
+            f"seed {t.seed}: {n.status} after {n.rounds} rounds, {n.messages} messages, "
+            f"{self.elapsed_s:.2f} s",
+            f"resolved cells: {z.fragments} cut off from their claim, {z.unclaimed} unclaimed, "
+            f"{z.contested} contested, {z.forbidden} forbidden to their claimant",
+            "",
+            f"{'robot':>5} {'period':>6} {'target %':>8} {'cells':>6} {'time':>6} │ "
+            f"{'equal cells':>11} {'equal time':>10} {'violations':>10}",
+        ]
         for r in self.robots:
-            lines.append(f"{r.id:>5} {r.period:>6} {100 * r.target:>8.1f} {r.cells:>6} {r.search_time:>6} │ "
-                         f"{r.equal_cells:>11} {r.equal_search_time:>10} {r.equal_violations:>10}")
+            lines.append(
+                f"{r.id:>5} {r.period:>6} {100 * r.target:>8.1f} {r.cells:>6} {r.search_time:>6} │ "
+                f"{r.equal_cells:>11} {r.equal_search_time:>10} {r.equal_violations:>10}"
+            )
         gain = 100.0 * (1 - self.team_time / self.equal_team_time) if self.equal_team_time else 0.0
         m, k = self.equal_partition
-        lines += ["", f"team search time: negotiated {self.team_time}, equal ({m}x{k}) {self.equal_team_time} "
-                      f"({gain:+.1f} % saved)"]
+        lines += [
+            "",
+            f"team search time: negotiated {self.team_time}, equal ({m}x{k}) {self.equal_team_time} "
+            f"({gain:+.1f} % saved)",
+        ]
         viol = sum(r.equal_violations for r in self.robots)
         if viol:
             lines.append(f"the equal partition gives {viol} forbidden cell(s) to their robot")
@@ -572,7 +623,7 @@ def equal_owner_map(team: SearchTeam) -> tuple[np.ndarray, tuple[int, int]]:
         raise NegotiationError(f"equal partition: {exc}") from None
     owner = np.full((team.height, team.width), -1, dtype=int)
     for k, a in enumerate(rects):
-        owner[a.y0:a.y0 + a.height, a.x0:a.x0 + a.width] = k
+        owner[a.y0 : a.y0 + a.height, a.x0 : a.x0 + a.width] = k
     return owner, part
 
 
@@ -581,13 +632,20 @@ def negotiate_partition(team: SearchTeam, search: AreaSearch | None = None) -> P
     ``search`` overrides the rule's proposal-search settings (tests use a cheaper one)."""
     t0 = time.perf_counter()
     allowed = team.allowed()
-    if not allowed.any(axis=0).all():   # fail before the (slow) negotiation
+    if not allowed.any(axis=0).all():  # fail before the (slow) negotiation
         y, x = np.argwhere(~allowed.any(axis=0))[0]
         raise NegotiationError(f"cell ({x}, {y}) is forbidden to every robot")
     equal, part = equal_owner_map(team)
     setup = negotiation_setup(team)
-    res = negotiate(setup.task, list(setup.agents), strategy="rounds", seed=team.seed,
-                    max_rounds=team.max_rounds, search=search or setup.search, trace=False)
+    res = negotiate(
+        setup.task,
+        list(setup.agents),
+        strategy="rounds",
+        seed=team.seed,
+        max_rounds=team.max_rounds,
+        search=search or setup.search,
+        trace=False,
+    )
     cells = rasterise(res.shares, team.width, team.height, team.scale)
     resolution = resolve(cells, allowed, [r.period for r in team.robots])
     robots, routes = [], []
@@ -595,12 +653,22 @@ def negotiate_partition(team: SearchTeam, search: AreaSearch | None = None) -> P
         pts = region_sweep(resolution.owner == i)
         moves, eq_moves = sweep_length(pts), sweep_length(region_sweep(equal == i))
         routes.append(pts)
-        robots.append(RobotOutcome(
-            r.id, r.period, setup.targets[i], int((resolution.owner == i).sum()), moves,
-            search_time(moves, r.period), int((equal == i).sum()), search_time(eq_moves, r.period),
-            int(((equal == i) & ~allowed[i]).sum())))
-    return PartitionResult(team, setup, res, resolution, equal, part, robots,
-                           time.perf_counter() - t0, routes)
+        robots.append(
+            RobotOutcome(
+                r.id,
+                r.period,
+                setup.targets[i],
+                int((resolution.owner == i).sum()),
+                moves,
+                search_time(moves, r.period),
+                int((equal == i).sum()),
+                search_time(eq_moves, r.period),
+                int(((equal == i) & ~allowed[i]).sum()),
+            )
+        )
+    return PartitionResult(
+        team, setup, res, resolution, equal, part, robots, time.perf_counter() - t0, routes
+    )
 
 
 # ------------------------------------------------------------------ plot ------------------------
@@ -620,25 +688,50 @@ def plot_partition(result: PartitionResult, path: str | Path) -> None:
     cmap = ListedColormap(colours)
     aspect = team.height / team.width
     fig, axes = plt.subplots(2, 1, figsize=(10, max(3.0, 2 * 10 * aspect + 1.6)))
-    panels = [(axes[0], result.owner, f"negotiated: team search time {result.team_time}"),
-              (axes[1], result.equal_owner, f"equal {result.equal_partition[0]}x{result.equal_partition[1]}: "
-                                            f"team search time {result.equal_team_time}")]
+    panels = [
+        (axes[0], result.owner, f"negotiated: team search time {result.team_time}"),
+        (
+            axes[1],
+            result.equal_owner,
+            f"equal {result.equal_partition[0]}x{result.equal_partition[1]}: "
+            f"team search time {result.equal_team_time}",
+        ),
+    ]
     for ax, owner, title in panels:
-        ax.imshow(owner, cmap=cmap, vmin=-0.5, vmax=n - 0.5, origin="upper", interpolation="nearest",
-                  extent=(-0.5, team.width - 0.5, team.height - 0.5, -0.5), alpha=0.75)
+        ax.imshow(
+            owner,
+            cmap=cmap,
+            vmin=-0.5,
+            vmax=n - 0.5,
+            origin="upper",
+            interpolation="nearest",
+            extent=(-0.5, team.width - 0.5, team.height - 0.5, -0.5),
+            alpha=0.75,
+        )
         for i, r in enumerate(team.robots):
             for x0, y0, x1, y1 in r.forbidden:
-                ax.add_patch(Rectangle((x0 - 0.5, y0 - 0.5), x1 - x0 + 1, y1 - y0 + 1, fill=False,
-                                       hatch="///", ec=colours[i], lw=1.2))
+                ax.add_patch(
+                    Rectangle(
+                        (x0 - 0.5, y0 - 0.5),
+                        x1 - x0 + 1,
+                        y1 - y0 + 1,
+                        fill=False,
+                        hatch="///",
+                        ec=colours[i],
+                        lw=1.2,
+                    )
+                )
         ax.set_xlim(-0.5, team.width - 0.5)
-        ax.set_ylim(team.height - 0.5, -0.5)   # rows grow downward, as the sweep's
+        ax.set_ylim(team.height - 0.5, -0.5)  # rows grow downward, as the sweep's
         ax.set_aspect("equal")
         ax.set_title(title, fontsize=10)
     for pts in result.routes:
         if pts:
             xy = np.array(sweep_path(pts))
             axes[0].plot(xy[:, 0], xy[:, 1], color="k", lw=0.5, alpha=0.6)
-    handles = [Patch(color=colours[i], label=f"r{r.id} (period {r.period})") for i, r in enumerate(team.robots)]
+    handles = [
+        Patch(color=colours[i], label=f"r{r.id} (period {r.period})") for i, r in enumerate(team.robots)
+    ]
     if any(r.forbidden for r in team.robots):
         handles.append(Patch(fill=False, hatch="///", label="forbidden (robot's colour)"))
     fig.legend(handles=handles, loc="lower center", ncol=min(len(handles), 6), fontsize=8, frameon=False)
@@ -648,15 +741,23 @@ def plot_partition(result: PartitionResult, path: str | Path) -> None:
 
 
 # ------------------------------------------------------------------ into an OST scenario -------
-def team_of(scenario, *, delta: float = 0.95, seed: int = 0, max_rounds: int = 200,
-            rule: str = "patience") -> SearchTeam:
+def team_of(
+    scenario, *, delta: float = 0.95, seed: int = 0, max_rounds: int = 200, rule: str = "patience"
+) -> SearchTeam:
     """The negotiation team of an OST scenario: its grid, its robots (periods, forbidden zones)."""
     robots = tuple(SearchRobot(a.id, a.period, tuple(a.forbidden)) for a in scenario.agents)
     return SearchTeam(scenario.grid.width, scenario.grid.height, robots, delta, seed, max_rounds, rule)
 
 
-def negotiated_scenario(scenario, *, delta: float = 0.95, seed: int = 0, max_rounds: int = 200,
-                        rule: str = "patience", search: AreaSearch | None = None):
+def negotiated_scenario(
+    scenario,
+    *,
+    delta: float = 0.95,
+    seed: int = 0,
+    max_rounds: int = 200,
+    rule: str = "patience",
+    search: AreaSearch | None = None,
+):
     """The scenario with every robot sweeping its negotiated region instead of its equal
     subarea (``AgentSpec.sweep``); a robot based at its subarea's sweep start (the default) is
     based at its region's sweep start instead. Returns (scenario, PartitionResult)."""
@@ -664,13 +765,15 @@ def negotiated_scenario(scenario, *, delta: float = 0.95, seed: int = 0, max_rou
 
     from ost_ros.scenario import build_scenario
 
-    result = negotiate_partition(team_of(scenario, delta=delta, seed=seed, max_rounds=max_rounds,
-                                         rule=rule), search)
+    result = negotiate_partition(
+        team_of(scenario, delta=delta, seed=seed, max_rounds=max_rounds, rule=rule), search
+    )
     agents = []
     for k, a in enumerate(scenario.agents):
         pts = tuple(tuple(int(v) for v in p) for p in result.routes[k]) or (a.base,)
         base = pts[0] if a.base == scenario.subareas[k].start else a.base
         agents.append(replace(a, sweep=pts, base=base))
-    out = build_scenario(scenario.grid, list(scenario.objects), partition=scenario.partition,
-                         agents=agents, nmax=scenario.nmax)
+    out = build_scenario(
+        scenario.grid, list(scenario.objects), partition=scenario.partition, agents=agents, nmax=scenario.nmax
+    )
     return out, result

@@ -7,6 +7,7 @@
   choosing the point whose removal raises the reward most; ties go to the farthest point
   (§4.2) or to the one that shortens the route most (§5.1).
 """
+
 from __future__ import annotations
 
 import math
@@ -86,8 +87,9 @@ def scale_to_area(c: np.ndarray, target: np.ndarray) -> np.ndarray:
     return cen[:, None, :] + (c - cen[:, None, :]) * f[:, None, None]
 
 
-def scale_to_inside_area(c: np.ndarray, target: np.ndarray, region, iters: int = 4,
-                         tol: float = 0.005) -> tuple[np.ndarray, np.ndarray]:
+def scale_to_inside_area(
+    c: np.ndarray, target: np.ndarray, region, iters: int = 4, tol: float = 0.005
+) -> tuple[np.ndarray, np.ndarray]:
     """Scale rings so their part inside ``region`` has the target area: a claim is a share
     *of the task*, so area outside T0 must not count towards it. Fixed-point iterations,
     repeated only for the rings not yet within ``tol``. Returns (rings, clipped geometries);
@@ -116,9 +118,16 @@ def scale_to_inside_area(c: np.ndarray, target: np.ndarray, region, iters: int =
     return c, clipped
 
 
-def propose_area(task: AreaTask, reward: AreaReward, prev: Polygon, cap: float,
-                 others: Sequence[Polygon], rng: np.random.Generator, search: AreaSearch,
-                 region=None) -> Polygon:
+def propose_area(
+    task: AreaTask,
+    reward: AreaReward,
+    prev: Polygon,
+    cap: float,
+    others: Sequence[Polygon],
+    rng: np.random.Generator,
+    search: AreaSearch,
+    region=None,
+) -> Polygon:
     """Best polygon near ``prev`` whose part inside the open region (T0 minus the shares of
     agents that already left) has area in [min_scale·cap, cap].
 
@@ -146,15 +155,23 @@ def propose_area(task: AreaTask, reward: AreaReward, prev: Polygon, cap: float,
         one = np.zeros((m, n, 2))
         one[np.arange(m), rng.integers(0, n, m)] = rng.normal(0.0, 3 * search.sigma * lin, (m, 2))
         shift = rng.normal(0.0, search.sigma * lin, (m, 1, 2))
-        child = pick + np.where(kind[:, None, None] == 0, noise, np.where(kind[:, None, None] == 1, one, shift))
+        child = pick + np.where(
+            kind[:, None, None] == 0, noise, np.where(kind[:, None, None] == 1, one, shift)
+        )
         scale = np.where(rng.random(m) < 0.5, 1.0, rng.uniform(search.min_scale, 1.0, m))
         raw = np.concatenate([parents, child])
-        cand, clipped = scale_to_inside_area(raw, cap * np.concatenate([np.ones(len(parents)), scale]), region)
+        cand, clipped = scale_to_inside_area(
+            raw, cap * np.concatenate([np.ones(len(parents)), scale]), region
+        )
         vals = reward.batch_values(task, clipped, others)
         # Keep to the size rule (§3.2.1: dim T(t) = δ·dim T(t−1)): a claim whose part in the
         # region missed its size by more than 2 % only wins if nothing else is feasible.
         size = shapely.area(clipped)
-        dev = np.maximum(0.0, np.maximum(size / cap - 1.0, search.min_scale - size / cap)) if cap > 0 else 0 * size
+        dev = (
+            np.maximum(0.0, np.maximum(size / cap - 1.0, search.min_scale - size / cap))
+            if cap > 0
+            else 0 * size
+        )
         vals = np.where(dev <= 0.02, vals, -1e6 - dev)
         if reward.forbidden is not None:
             # private constraints are hard: a claim on forbidden ground is never offered
@@ -165,17 +182,26 @@ def propose_area(task: AreaTask, reward: AreaReward, prev: Polygon, cap: float,
         order = np.argsort(-vals)
         if vals[order[0]] > best_v:
             best_v, best_poly = vals[order[0]], hole_free(largest_polygon(clipped[order[0]]))
-        keep = [k for k in order[:search.elites] if np.isfinite(vals[k])]
+        keep = [k for k in order[: search.elites] if np.isfinite(vals[k])]
         if keep:
             parents = cand[keep]
-    if (best_poly is None or best_poly.is_empty  # every candidate invalid: keep the previous claim
-            or reward.constraint_violation(best_poly) > 0.0):
+    if (
+        best_poly is None
+        or best_poly.is_empty  # every candidate invalid: keep the previous claim
+        or reward.constraint_violation(best_poly) > 0.0
+    ):
         return prev
     return best_poly
 
 
-def drop_targets(task: TargetTask, reward: TargetReward, prev: frozenset[int], cap: int,
-                 others: Sequence[frozenset[int]], rule: str = "farthest") -> frozenset[int]:
+def drop_targets(
+    task: TargetTask,
+    reward: TargetReward,
+    prev: frozenset[int],
+    cap: int,
+    others: Sequence[frozenset[int]],
+    rule: str = "farthest",
+) -> frozenset[int]:
     """Shrink a target claim to at most ``cap`` points, dropping only points someone else
     also claims (dropping an uncontested point would leave it to nobody)."""
     if rule not in ("farthest", "path"):

@@ -5,6 +5,7 @@ a small per-agent state machine: the claim schedule, the estimate of the opponen
 factor from the offers received, the predicted share and the acceptance test. A 1-D
 reference negotiation (``alternating_offers_1d``) checks the machinery against the closed form.
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -56,7 +57,7 @@ def estimate_discount(sizes: Sequence[float], window: int = 1) -> float | None:
     s = [float(x) for x in sizes]
     if len(s) < 2:
         return None
-    s = s[-(window + 1):]
+    s = s[-(window + 1) :]
     if s[0] <= 0 or s[-1] <= 0:
         return None
     ratio = (s[-1] / s[0]) ** (1.0 / (len(s) - 1))
@@ -70,7 +71,7 @@ class ProtocolState:
     delta: float
     first: bool = True
     window: int = 1
-    claim: float = 1.0          # current claimed fraction of the task (Eq. 1)
+    claim: float = 1.0  # current claimed fraction of the task (Eq. 1)
     offers_made: int = 0
     received: list[float] = field(default_factory=list)
 
@@ -112,14 +113,15 @@ class OneDResult:
 
     share_first: float
     share_second: float
-    accepted_by: int            # 0 = starter, 1 = responder, -1 = time-out
+    accepted_by: int  # 0 = starter, 1 = responder, -1 = time-out
     periods: int
-    prediction_first: float     # Eq. 2 with the true δs
+    prediction_first: float  # Eq. 2 with the true δs
     trace: tuple[tuple[int, int, float], ...]  # (period, proposer, claim)
 
 
-def alternating_offers_1d(delta_first: float, delta_second: float, max_periods: int = 100_000,
-                          window: int = 1) -> OneDResult:
+def alternating_offers_1d(
+    delta_first: float, delta_second: float, max_periods: int = 100_000, window: int = 1
+) -> OneDResult:
     """Two agents split a good of size 1. Each claims the whole at first and shrinks its claim
     by its δ at each own offer; the receiver accepts when 1 − claim reaches its prediction."""
     states = [ProtocolState(delta_first, True, window), ProtocolState(delta_second, False, window)]
@@ -132,7 +134,14 @@ def alternating_offers_1d(delta_first: float, delta_second: float, max_periods: 
         if states[responder].accepts(1.0 - claim):
             shares = [0.0, 0.0]
             shares[proposer], shares[responder] = claim, 1.0 - claim
-            return OneDResult(shares[0], shares[1], responder, t + 1,
-                              rubinstein_share(delta_first, delta_second), tuple(trace))
-    return OneDResult(float("nan"), float("nan"), -1, max_periods,
-                      rubinstein_share(delta_first, delta_second), tuple(trace))
+            return OneDResult(
+                shares[0],
+                shares[1],
+                responder,
+                t + 1,
+                rubinstein_share(delta_first, delta_second),
+                tuple(trace),
+            )
+    return OneDResult(
+        float("nan"), float("nan"), -1, max_periods, rubinstein_share(delta_first, delta_second), tuple(trace)
+    )

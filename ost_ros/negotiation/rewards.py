@@ -3,6 +3,7 @@
 Each robot owns one reward object; its private constraints (a no-fly zone, unreachable
 targets) live only here and never enter a message.
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -41,7 +42,7 @@ class AreaReward:
     w_forbidden: float = 1000.0
     start: tuple[float, float] | None = None
     w_dist: float = 0.0
-    value_inside: bool = True   # dim term counts only the part in T0 (see interpretation notes)
+    value_inside: bool = True  # dim term counts only the part in T0 (see interpretation notes)
 
     def terms(self, task: AreaTask, share: BaseGeometry, others: Sequence[BaseGeometry]) -> dict[str, float]:
         """The individual terms (unweighted), for reports and hand checks."""
@@ -56,8 +57,14 @@ class AreaReward:
 
     def value(self, task: AreaTask, share: BaseGeometry, others: Sequence[BaseGeometry]) -> float:
         t = self.terms(task, share, others)
-        return (self.w_dim * t["dim"] - self.w_out * t["out"] - self.w_overlap * t["overlap"]
-                - self.w_ill * t["ill"] - self.w_forbidden * t["forbidden"] - self.w_dist * t["dist"])
+        return (
+            self.w_dim * t["dim"]
+            - self.w_out * t["out"]
+            - self.w_overlap * t["overlap"]
+            - self.w_ill * t["ill"]
+            - self.w_forbidden * t["forbidden"]
+            - self.w_dist * t["dist"]
+        )
 
     def constraint_violation(self, share: BaseGeometry) -> float:
         """Size of the share inside the private forbidden zone (0 = acceptable)."""

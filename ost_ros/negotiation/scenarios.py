@@ -1,6 +1,7 @@
 """The paper's experimental set-ups (§2.2, §3.2.3, §4.1, §4.2) as seeded functions, shared by
 the report writer, the CLI and the tests. Each returns plain numbers so it can run in a
 worker process."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -16,10 +17,10 @@ from .proposals import AreaSearch
 from .rewards import AreaReward, TargetReward
 from .tasks import AreaTask, TargetTask, make_task_polygon
 
-ROBOT_START = (0.5, 0.0)      # §4.2: robots at the middle of the bottom edge
-AREA_DELTA = 0.98             # §4.1, Table 2
-TARGET_DELTA = 0.9            # §4.2 gives none; see interpretation notes
-FIG4_DELTAS = (0.95, 0.955)   # Fig. 4
+ROBOT_START = (0.5, 0.0)  # §4.2: robots at the middle of the bottom edge
+AREA_DELTA = 0.98  # §4.1, Table 2
+TARGET_DELTA = 0.9  # §4.2 gives none; see interpretation notes
+FIG4_DELTAS = (0.95, 0.955)  # Fig. 4
 
 
 def fig4(seed: int = 0, search: AreaSearch | None = None) -> NegotiationResult:
@@ -33,15 +34,23 @@ def table2_run(robots: int, seed: int, search: AreaSearch | None = None) -> dict
     task = AreaTask(make_task_polygon(0.673))
     res = negotiate(task, [AgentSpec(AREA_DELTA)] * robots, seed=seed, search=search, trace=False)
     m = res.metrics()
-    return {"R": robots, "seed": seed, "status": res.status, "messages": res.messages,
-            "overlap_pct": 100 * m["overlap"], "G": m["G"], "covered_pct": 100 * m["covered"],
-            "out_pct": 100 * m["out"], "rounds": res.rounds,
-            "shares": [list(task.encode(s)) for s in res.shares]}
+    return {
+        "R": robots,
+        "seed": seed,
+        "status": res.status,
+        "messages": res.messages,
+        "overlap_pct": 100 * m["overlap"],
+        "G": m["G"],
+        "covered_pct": 100 * m["covered"],
+        "out_pct": 100 * m["out"],
+        "rounds": res.rounds,
+        "shares": [list(task.encode(s)) for s in res.shares],
+    }
 
 
 def nfz_zone(task: AreaTask) -> Polygon:
     """A 0.03-area square no-fly zone in a corner of T0 (§2.2: dim(NFZ) = 0.03)."""
-    side = 0.03 ** 0.5
+    side = 0.03**0.5
     minx, _, maxx, maxy = task.t0.bounds
     cx = (minx + maxx) / 2
     zone = box(cx - side / 2, maxy - 0.12 - side, cx + side / 2, maxy - 0.12)
@@ -54,16 +63,30 @@ def nfz_run(seed: int) -> dict[str, Any]:
     zone = nfz_zone(task)
     plain = AreaReward(w_overlap=1.0, w_ill=0.0)
     constrained = AreaReward(w_overlap=1.0, w_ill=0.0, forbidden=zone, w_forbidden=1000.0)
-    res = negotiate(task, [AgentSpec(FIG4_DELTAS[0], plain), AgentSpec(FIG4_DELTAS[1], constrained)],
-                    seed=seed, trace=False)
+    res = negotiate(
+        task,
+        [AgentSpec(FIG4_DELTAS[0], plain), AgentSpec(FIG4_DELTAS[1], constrained)],
+        seed=seed,
+        trace=False,
+    )
     s1, s2 = res.shares
     m = res.metrics()
-    return {"seed": seed, "status": res.status, "rounds": res.rounds,
-            "dim_S1": s1.area, "dim_S2": s2.area, "overlap": s1.intersection(s2).area,
-            "nfz_in_S1": s1.intersection(zone).area, "nfz_in_S2": s2.intersection(zone).area,
-            "G": m["G"], "g1_S1": plain.value(task, s1, [s2]), "g2_S2": constrained.value(task, s2, [s1]),
-            "g2_S1": constrained.value(task, s1, [s2]),
-            "shares": [list(task.encode(s)) for s in res.shares], "nfz": list(task.encode(zone))}
+    return {
+        "seed": seed,
+        "status": res.status,
+        "rounds": res.rounds,
+        "dim_S1": s1.area,
+        "dim_S2": s2.area,
+        "overlap": s1.intersection(s2).area,
+        "nfz_in_S1": s1.intersection(zone).area,
+        "nfz_in_S2": s2.intersection(zone).area,
+        "G": m["G"],
+        "g1_S1": plain.value(task, s1, [s2]),
+        "g2_S2": constrained.value(task, s2, [s1]),
+        "g2_S1": constrained.value(task, s1, [s2]),
+        "shares": [list(task.encode(s)) for s in res.shares],
+        "nfz": list(task.encode(zone)),
+    }
 
 
 def target_points(n: int, robots: int, run: int, seed: int = 0) -> np.ndarray:
@@ -71,34 +94,74 @@ def target_points(n: int, robots: int, run: int, seed: int = 0) -> np.ndarray:
     return np.random.default_rng([seed, n, robots, run]).random((n, 2))
 
 
-def target_run(n: int, robots: int, run: int, strategy: str = "rounds", rule: str = "farthest",
-               delta: float = TARGET_DELTA, seed: int = 0) -> dict[str, Any]:
+def target_run(
+    n: int,
+    robots: int,
+    run: int,
+    strategy: str = "rounds",
+    rule: str = "farthest",
+    delta: float = TARGET_DELTA,
+    seed: int = 0,
+) -> dict[str, Any]:
     """One run of Tables 3/4: negotiated vs exact total and maximum individual distances."""
     pts = target_points(n, robots, run, seed)
     task = TargetTask.from_points(pts)
     starts = np.array([ROBOT_START] * robots)
-    res = negotiate(task, [AgentSpec(delta, TargetReward(start=ROBOT_START))] * robots,
-                    strategy=strategy, drop_rule=rule, seed=seed * 1000 + run, trace=False)
+    res = negotiate(
+        task,
+        [AgentSpec(delta, TargetReward(start=ROBOT_START))] * robots,
+        strategy=strategy,
+        drop_rule=rule,
+        seed=seed * 1000 + run,
+        trace=False,
+    )
     neg = evaluate_allocation(starts, pts, res.shares)
     best_total = optimal_allocation(starts, pts, "total").total
     best_max = optimal_allocation(starts, pts, "max").max_individual
     m = res.metrics()
-    return {"N": n, "R": robots, "run": run, "strategy": strategy, "rule": rule, "status": res.status,
-            "rounds": res.rounds, "messages": res.messages, "G": m["G"], "overlap": m["overlap"],
-            "total": neg.total, "opt_total": best_total, "max": neg.max_individual, "opt_max": best_max,
-            "excess_total_pct": 100 * (neg.total - best_total) / best_total,
-            "excess_max_pct": 100 * (neg.max_individual - best_max) / best_max}
+    return {
+        "N": n,
+        "R": robots,
+        "run": run,
+        "strategy": strategy,
+        "rule": rule,
+        "status": res.status,
+        "rounds": res.rounds,
+        "messages": res.messages,
+        "G": m["G"],
+        "overlap": m["overlap"],
+        "total": neg.total,
+        "opt_total": best_total,
+        "max": neg.max_individual,
+        "opt_max": best_max,
+        "excess_total_pct": 100 * (neg.total - best_total) / best_total,
+        "excess_max_pct": 100 * (neg.max_individual - best_max) / best_max,
+    }
 
 
 @dataclass(frozen=True)
 class PaperValues:
     """Values printed in the paper (Tables 2–4), rows R, for the side-by-side report."""
 
-    table2: ClassVar[dict[int, tuple[float, ...]]] = {2: (0.9, 0.66, 97.8, 0.07, 19), 3: (2.4, 0.66, 97.6, 0.03, 44),
-              4: (0.95, 0.64, 94.8, 0.96, 59), 5: (1.6, 0.65, 95.7, 0.98, 66)}
-    table3: ClassVar[dict[int, tuple[float, ...]]] = {2: (5.5, 3.5, 11.3, 1.6, 4.3, 24.1), 3: (130.2, 34.6, 12.4, 10.1, 18.2, 13.9),
-              4: (102.6, 51.5, 17.6, 21.1, 16.8, 6.4), 5: (137.0, 99.4, 112.7, 33.9, 58.6, 29.6),
-              6: (198.6, 141.7, 59.3, 36.7, 46.4, 34.2), 7: (56.2, 144.7, 77.2, 85.2, 32.3, 32.2)}
-    table4: ClassVar[dict[int, tuple[float, ...]]] = {2: (20.8, 45.7, 59.9, 56.6, 65.9, 74.2), 3: (0.5, 35.7, 46.8, 56.6, 58.6, 61.1),
-              4: (36.5, 37.9, 49.7, 54.0, 57.7, 63.0), 5: (27.9, 49.6, 42.0, 55.6, 53.8, 55.1),
-              6: (22.4, 31.4, 56.6, 55.9, 61.6, 60.9), 7: (1.3, 32.9, 51.2, 58.5, 57.5, 60.1)}
+    table2: ClassVar[dict[int, tuple[float, ...]]] = {
+        2: (0.9, 0.66, 97.8, 0.07, 19),
+        3: (2.4, 0.66, 97.6, 0.03, 44),
+        4: (0.95, 0.64, 94.8, 0.96, 59),
+        5: (1.6, 0.65, 95.7, 0.98, 66),
+    }
+    table3: ClassVar[dict[int, tuple[float, ...]]] = {
+        2: (5.5, 3.5, 11.3, 1.6, 4.3, 24.1),
+        3: (130.2, 34.6, 12.4, 10.1, 18.2, 13.9),
+        4: (102.6, 51.5, 17.6, 21.1, 16.8, 6.4),
+        5: (137.0, 99.4, 112.7, 33.9, 58.6, 29.6),
+        6: (198.6, 141.7, 59.3, 36.7, 46.4, 34.2),
+        7: (56.2, 144.7, 77.2, 85.2, 32.3, 32.2),
+    }
+    table4: ClassVar[dict[int, tuple[float, ...]]] = {
+        2: (20.8, 45.7, 59.9, 56.6, 65.9, 74.2),
+        3: (0.5, 35.7, 46.8, 56.6, 58.6, 61.1),
+        4: (36.5, 37.9, 49.7, 54.0, 57.7, 63.0),
+        5: (27.9, 49.6, 42.0, 55.6, 53.8, 55.1),
+        6: (22.4, 31.4, 56.6, 55.9, 61.6, 60.9),
+        7: (1.3, 32.9, 51.2, 58.5, 57.5, 60.1),
+    }

@@ -23,6 +23,7 @@ the rules (a claim that grows, drops a protected target, leaves while contested)
 treated as no answer. NCP (:mod:`ost_ros.protocols.ncp`) runs it over the OST's messages;
 :func:`negotiate_slots` runs it standalone (``ost negotiate run --task slots``).
 """
+
 from __future__ import annotations
 
 import math
@@ -44,9 +45,9 @@ _FAR = np.int64(1) << 60
 class NegotiationSettings:
     """NCP parameters, the same for every agent (they shape the public protocol)."""
 
-    delta: float = 0.8          # claim discount per round (Eq. 1)
-    timeout_rounds: int = 3     # rounds without an answer before an agent is dropped
-    max_rounds: int = 200       # then the negotiation is closed by the protection rule
+    delta: float = 0.8  # claim discount per round (Eq. 1)
+    timeout_rounds: int = 3  # rounds without an answer before an agent is dropped
+    max_rounds: int = 200  # then the negotiation is closed by the protection rule
 
     def __post_init__(self) -> None:
         validate_delta(self.delta, "NCP discount factor")
@@ -61,8 +62,7 @@ def claim_cap(delta: float, r: int, size: int) -> int:
     return math.floor(claim_size(delta, r, float(size)) + 1e-9)
 
 
-def protected(claims: np.ndarray, reach: np.ndarray, need: np.ndarray,
-              alive: np.ndarray) -> np.ndarray:
+def protected(claims: np.ndarray, reach: np.ndarray, need: np.ndarray, alive: np.ndarray) -> np.ndarray:
     """(N, B) mask: claimer j of object i is among the n_i claimers ranked first by (size of
     j's whole claim, C_ij, j) — the least loaded keep their slots, then the cheapest.
 
@@ -73,15 +73,23 @@ def protected(claims: np.ndarray, reach: np.ndarray, need: np.ndarray,
     live = claims & alive[:, None]
     load = live.sum(axis=1).astype(np.int64)
     # one integer key: load first, then the reach (both far below 2**40 in any grid here)
-    key = np.where(live, load[:, None] * (np.int64(1) << 40) + reach.T, _FAR)   # (N, B)
-    order = np.argsort(key, axis=0, kind="stable")            # ties: the lower agent index
+    key = np.where(live, load[:, None] * (np.int64(1) << 40) + reach.T, _FAR)  # (N, B)
+    order = np.argsort(key, axis=0, kind="stable")  # ties: the lower agent index
     rank = np.empty_like(order)
     rank[order, np.arange(b)[None, :]] = np.arange(n)[:, None]
     return live & (rank < need[None, :])
 
 
-def decide(k: int, claims: np.ndarray, alive: np.ndarray, need: np.ndarray, reach: np.ndarray,
-           drop_key: np.ndarray, cap: int, prot: np.ndarray | None = None) -> tuple[str, np.ndarray]:
+def decide(
+    k: int,
+    claims: np.ndarray,
+    alive: np.ndarray,
+    need: np.ndarray,
+    reach: np.ndarray,
+    drop_key: np.ndarray,
+    cap: int,
+    prot: np.ndarray | None = None,
+) -> tuple[str, np.ndarray]:
     """Agent k's move in a round: ("exit", claim) if nothing it claims is contested, else
     ("offer", claim) after dropping the farthest unprotected contested objects down to ``cap``.
 
@@ -113,29 +121,40 @@ class SlotNegotiation:
     """The public state of one negotiation — identical in every agent's comm module."""
 
     number: int
-    objects: tuple[int, ...]           # ascending object ids (column order)
-    need: np.ndarray                   # (B,) n_i
-    reach: np.ndarray                  # (B, N) C_ij at the start (public, as in CCP)
-    carry: np.ndarray                  # (B,) dist(l_i, d_i)
-    claims: np.ndarray                 # (N, B) bool: the last claim each agent announced
-    alive: np.ndarray                  # (N,) still in the negotiation (not timed out)
-    exited: np.ndarray                 # (N,) left with its claim
-    missing: np.ndarray                # (N,) consecutive rounds without a valid answer
-    round: int = 0                     # the round whose moves are read next
-    base: int = 0                      # the round the current attempt opened in
-    forced: bool = False               # closed by max_rounds, not by agreement
+    objects: tuple[int, ...]  # ascending object ids (column order)
+    need: np.ndarray  # (B,) n_i
+    reach: np.ndarray  # (B, N) C_ij at the start (public, as in CCP)
+    carry: np.ndarray  # (B,) dist(l_i, d_i)
+    claims: np.ndarray  # (N, B) bool: the last claim each agent announced
+    alive: np.ndarray  # (N,) still in the negotiation (not timed out)
+    exited: np.ndarray  # (N,) left with its claim
+    missing: np.ndarray  # (N,) consecutive rounds without a valid answer
+    round: int = 0  # the round whose moves are read next
+    base: int = 0  # the round the current attempt opened in
+    forced: bool = False  # closed by max_rounds, not by agreement
     notes: list[str] = field(default_factory=list)
-    _prot: np.ndarray | None = None    # protected() of the current round, once computed
+    _prot: np.ndarray | None = None  # protected() of the current round, once computed
 
     @classmethod
     def open(cls, number: int, objects: list, reach: np.ndarray) -> SlotNegotiation:
         n, b = reach.shape[1], len(objects)
-        return cls(number, tuple(o.id for o in objects),
-                   np.array([o.required for o in objects], dtype=np.int64), reach,
-                   np.array([abs(o.location[0] - o.destination[0]) + abs(o.location[1] - o.destination[1])
-                             for o in objects], dtype=np.int64),
-                   np.ones((n, b), dtype=bool), np.ones(n, dtype=bool), np.zeros(n, dtype=bool),
-                   np.zeros(n, dtype=np.int64))
+        return cls(
+            number,
+            tuple(o.id for o in objects),
+            np.array([o.required for o in objects], dtype=np.int64),
+            reach,
+            np.array(
+                [
+                    abs(o.location[0] - o.destination[0]) + abs(o.location[1] - o.destination[1])
+                    for o in objects
+                ],
+                dtype=np.int64,
+            ),
+            np.ones((n, b), dtype=bool),
+            np.ones(n, dtype=bool),
+            np.zeros(n, dtype=bool),
+            np.zeros(n, dtype=np.int64),
+        )
 
     @property
     def active(self) -> np.ndarray:
@@ -146,8 +165,16 @@ class SlotNegotiation:
 
     def move(self, k: int, settings: NegotiationSettings) -> tuple[str, np.ndarray]:
         """Agent k's move for round ``self.round`` (k's private reward: farthest from it)."""
-        return decide(k, self.claims, self.alive, self.need, self.reach,
-                      self.drop_key(k), self.cap(settings), self.protected_now())
+        return decide(
+            k,
+            self.claims,
+            self.alive,
+            self.need,
+            self.reach,
+            self.drop_key(k),
+            self.cap(settings),
+            self.protected_now(),
+        )
 
     def protected_now(self) -> np.ndarray:
         """:func:`protected` for the current claims (computed once per round)."""
@@ -160,18 +187,23 @@ class SlotNegotiation:
         than the object's n_i-th fastest claimer it would arrive — a slot where it would keep
         the group waiting costs the team most."""
         live = self.claims & self.alive[:, None]
-        key = np.where(live.T, self.reach, _FAR)                      # (B, N)
+        key = np.where(live.T, self.reach, _FAR)  # (B, N)
         nth = np.sort(key, axis=1)[np.arange(len(self.need)), self.need - 1]
         return self.reach[:, k] - nth
 
-    def _check(self, k: int, msg: NegotiationOffer, agent_id: int, prot: np.ndarray,
-               counts: np.ndarray) -> np.ndarray | None:
+    def _check(
+        self, k: int, msg: NegotiationOffer, agent_id: int, prot: np.ndarray, counts: np.ndarray
+    ) -> np.ndarray | None:
         """The claim row of a valid move of agent k, else None (with a note saying why)."""
         col = {oid: c for c, oid in enumerate(self.objects)}
-        if msg.kind not in ("offer", "exit") or any(o not in col for o in msg.offer) \
-                or len(set(msg.offer)) != len(msg.offer):
-            self.notes.append(f"agent {agent_id}: malformed move in negotiation {self.number} "
-                              f"round {self.round}; ignored")
+        if (
+            msg.kind not in ("offer", "exit")
+            or any(o not in col for o in msg.offer)
+            or len(set(msg.offer)) != len(msg.offer)
+        ):
+            self.notes.append(
+                f"agent {agent_id}: malformed move in negotiation {self.number} round {self.round}; ignored"
+            )
             return None
         row = np.zeros(len(self.objects), dtype=bool)
         row[[col[o] for o in msg.offer]] = True
@@ -187,13 +219,15 @@ class SlotNegotiation:
         elif msg.kind == "exit" and np.any(row & (counts > self.need)):
             why = "left while its claim is contested"
         if why:
-            self.notes.append(f"agent {agent_id}: move in negotiation {self.number} round "
-                              f"{self.round} {why}; ignored")
+            self.notes.append(
+                f"agent {agent_id}: move in negotiation {self.number} round {self.round} {why}; ignored"
+            )
             return None
         return row
 
-    def apply(self, moves: dict[int, NegotiationOffer], agent_ids: tuple[int, ...],
-              settings: NegotiationSettings) -> None:
+    def apply(
+        self, moves: dict[int, NegotiationOffer], agent_ids: tuple[int, ...], settings: NegotiationSettings
+    ) -> None:
         """Read the moves of round ``self.round`` (index → message), all at once."""
         expected = np.flatnonzero(self.active)
         new_claims = self.claims.copy()
@@ -218,8 +252,10 @@ class SlotNegotiation:
             if alive.sum() >= self.need.max():
                 # Conclude without them: the others open again, claiming everything.
                 names = ", ".join(str(agent_ids[k]) for k in late)
-                self.notes.append(f"negotiation {self.number}: agent(s) {names} silent for "
-                                  f"{settings.timeout_rounds} rounds; going on without them")
+                self.notes.append(
+                    f"negotiation {self.number}: agent(s) {names} silent for "
+                    f"{settings.timeout_rounds} rounds; going on without them"
+                )
                 self.alive = alive
                 self.claims[:] = True
                 self._prot = None
@@ -228,8 +264,10 @@ class SlotNegotiation:
                 self.base = self.round
         if self.round - self.base >= settings.max_rounds and self.active.any():
             self.forced = True
-            self.notes.append(f"negotiation {self.number}: no agreement after "
-                              f"{settings.max_rounds} rounds; closed by the protection rule")
+            self.notes.append(
+                f"negotiation {self.number}: no agreement after "
+                f"{settings.max_rounds} rounds; closed by the protection rule"
+            )
 
     @property
     def done(self) -> bool:
@@ -237,15 +275,24 @@ class SlotNegotiation:
 
     def groups(self, agent_ids: tuple[int, ...]) -> dict[int, tuple[int, ...]]:
         """Object id → its agreed group (when forced: the protected claimers)."""
-        owners = protected(self.claims, self.reach, self.need, self.alive) if self.forced \
+        owners = (
+            protected(self.claims, self.reach, self.need, self.alive)
+            if self.forced
             else self.claims & self.alive[:, None]
-        return {oid: tuple(agent_ids[k] for k in np.flatnonzero(owners[:, c]))
-                for c, oid in enumerate(self.objects)}
+        )
+        return {
+            oid: tuple(agent_ids[k] for k in np.flatnonzero(owners[:, c]))
+            for c, oid in enumerate(self.objects)
+        }
 
 
-def negotiate_slots(objects: Sequence[ObjectInfo], reach: np.ndarray, agent_ids: Sequence[int],
-                    settings: NegotiationSettings | None = None,
-                    silent: Mapping[int, int] | None = None) -> tuple[SlotNegotiation, int]:
+def negotiate_slots(
+    objects: Sequence[ObjectInfo],
+    reach: np.ndarray,
+    agent_ids: Sequence[int],
+    settings: NegotiationSettings | None = None,
+    silent: Mapping[int, int] | None = None,
+) -> tuple[SlotNegotiation, int]:
     """Run one slot negotiation to its end, every agent moving by the rules each round; returns
     the final state (``groups``) and the number of moves sent. ``reach`` (B, N): the public cost
     C_ij of agent j reaching target i. ``silent``: agent id -> the round from which it sends
@@ -253,8 +300,7 @@ def negotiate_slots(objects: Sequence[ObjectInfo], reach: np.ndarray, agent_ids:
     settings = settings or NegotiationSettings()
     ids = tuple(agent_ids)
     if reach.shape != (len(objects), len(ids)):
-        raise NegotiationError(f"reach must be {len(objects)} targets x {len(ids)} agents, "
-                               f"got {reach.shape}")
+        raise NegotiationError(f"reach must be {len(objects)} targets x {len(ids)} agents, got {reach.shape}")
     if objects and max(o.required for o in objects) > len(ids):
         raise NegotiationError("a target needs more robots than negotiate")
     neg = SlotNegotiation.open(1, list(objects), reach)
@@ -265,8 +311,14 @@ def negotiate_slots(objects: Sequence[ObjectInfo], reach: np.ndarray, agent_ids:
             if silent and neg.round >= silent.get(ids[k], neg.round + 1):
                 continue
             kind, row = neg.move(int(k), settings)
-            moves[int(k)] = NegotiationOffer(ids[k], neg.round, neg.number, neg.round, kind,
-                                             tuple(neg.objects[c] for c in np.flatnonzero(row)))
+            moves[int(k)] = NegotiationOffer(
+                ids[k],
+                neg.round,
+                neg.number,
+                neg.round,
+                kind,
+                tuple(neg.objects[c] for c in np.flatnonzero(row)),
+            )
         sent += len(moves)
         neg.apply(moves, ids, settings)
     return neg, sent
@@ -283,6 +335,7 @@ def after_search(scenario: Scenario) -> tuple[list[ObjectInfo], np.ndarray, tupl
     where = np.array([o.location for o in scenario.objects], dtype=np.int64).reshape(-1, 2)
     ends = team.sweep_ends()
     dist = np.abs(where[:, None, :] - ends[None, :, :]).sum(axis=2)
-    reach = arrival_np(np.full(team.size, close + 1, dtype=np.int64)[None, :], dist,
-                       team.period_array()[None, :])
+    reach = arrival_np(
+        np.full(team.size, close + 1, dtype=np.int64)[None, :], dist, team.period_array()[None, :]
+    )
     return list(scenario.objects), reach, team.agent_ids

@@ -5,6 +5,7 @@ union and "outside T0" on its sub-tasks, and how a sub-task maps to/from a flat 
 * ``TargetTask``: T0 is a set of weighted points; a sub-task is a subset of them
   (encoded as the claimed points' coordinates, as in the paper's x = (p1..pn)).
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -32,10 +33,14 @@ def polygon_from_vertices(vertices: Sequence[Sequence[float]] | np.ndarray, what
     if not np.all(np.isfinite(arr)):
         raise NegotiationError(f"{what}: vertices must be finite numbers")
     if len(np.unique(arr, axis=0)) < 3:
-        raise NegotiationError(f"{what}: needs at least 3 distinct vertices, got {len(np.unique(arr, axis=0))}")
+        raise NegotiationError(
+            f"{what}: needs at least 3 distinct vertices, got {len(np.unique(arr, axis=0))}"
+        )
     poly = Polygon(arr)
     if not poly.is_valid:
-        raise NegotiationError(f"{what}: self-intersecting or otherwise invalid ({shapely.is_valid_reason(poly)})")
+        raise NegotiationError(
+            f"{what}: self-intersecting or otherwise invalid ({shapely.is_valid_reason(poly)})"
+        )
     if poly.area <= 1e-9:
         raise NegotiationError(f"{what}: degenerate (zero area)")
     return poly
@@ -210,6 +215,8 @@ class TargetTask:
             d = np.hypot(*(self.points - xy).T)
             i = int(np.argmin(d))
             if d[i] > 1e-9:
-                raise NegotiationError(f"offered point ({xy[0]:g}, {xy[1]:g}) is not one of the task's targets")
+                raise NegotiationError(
+                    f"offered point ({xy[0]:g}, {xy[1]:g}) is not one of the task's targets"
+                )
             out.add(i)
         return frozenset(out)

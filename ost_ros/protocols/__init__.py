@@ -6,6 +6,7 @@ or checks what a protocol can do asks here: the ``ost`` verbs and their ``--help
 node's parameters, ``ost_up.sh``, the study, the plots, the engines. Adding a protocol is its
 package plus one line in :data:`REGISTRY` (docs/architecture.md, "How to add a protocol").
 """
+
 from __future__ import annotations
 
 from collections.abc import Mapping
@@ -19,8 +20,20 @@ from ost_ros.team import TeamInfo
 
 REGISTRY: dict[str, ProtocolSpec] = {spec.name: spec for spec in (ccp.SPEC, hcp.SPEC, ncp.SPEC)}
 
-__all__ = ["REGISTRY", "Capabilities", "Option", "ProtocolAgent", "ProtocolError", "ProtocolSpec",
-           "check", "get", "make_agents", "names", "option_default", "settings_from"]
+__all__ = [
+    "REGISTRY",
+    "Capabilities",
+    "Option",
+    "ProtocolAgent",
+    "ProtocolError",
+    "ProtocolSpec",
+    "check",
+    "get",
+    "make_agents",
+    "names",
+    "option_default",
+    "settings_from",
+]
 
 
 def names() -> tuple[str, ...]:
@@ -39,31 +52,45 @@ def _able(flag: str) -> str:
     return " and ".join(s.name for s in REGISTRY.values() if getattr(s.capabilities, flag)) or "none"
 
 
-def check(name: str, *, scenario: Scenario | None = None, policy: CoordinationPolicy | None = None,
-          failures: bool = False, silence: bool = False) -> ProtocolSpec:
+def check(
+    name: str,
+    *,
+    scenario: Scenario | None = None,
+    policy: CoordinationPolicy | None = None,
+    failures: bool = False,
+    silence: bool = False,
+) -> ProtocolSpec:
     """The spec of ``name`` if it can run what is asked, else a one-line :class:`ProtocolError`:
     the scenario's team (speeds, own sweeps), the coordination organisation, robot failures,
     a silenced negotiator."""
     spec = get(name)
     caps = spec.capabilities
     if policy is not None and policy.organisation not in caps.organisations:
-        able = " and ".join(s.name for s in REGISTRY.values() if policy.organisation in s.capabilities.organisations)
+        able = " and ".join(
+            s.name for s in REGISTRY.values() if policy.organisation in s.capabilities.organisations
+        )
         raise ProtocolError(f"the {policy.organisation} organisation is for {able} only (not {name})")
     if failures and not caps.recovers_failures:
-        raise ProtocolError(f"protocol {name} does not recover from failures "
-                            f"({_able('recovers_failures')} do)")
+        raise ProtocolError(
+            f"protocol {name} does not recover from failures ({_able('recovers_failures')} do)"
+        )
     if failures and policy is not None and policy.centralised:
-        raise ProtocolError("the coordinator organisation does not recover from failures (the "
-                            "distributed one does)")
+        raise ProtocolError(
+            "the coordinator organisation does not recover from failures (the distributed one does)"
+        )
     if silence and spec.silence is None:
         raise ProtocolError(f"a silenced negotiator: protocol {name} does not negotiate")
     if scenario is not None:
         if any(a.sweep for a in scenario.agents) and not caps.own_sweeps:
-            raise ProtocolError(f"{name} cannot run robots with their own sweeps (a negotiated "
-                                f"partition); {_able('own_sweeps')} can")
+            raise ProtocolError(
+                f"{name} cannot run robots with their own sweeps (a negotiated "
+                f"partition); {_able('own_sweeps')} can"
+            )
         if scenario.heterogeneous and not caps.heterogeneous:
-            raise ProtocolError(f"{name} runs unit-speed teams only (agent periods other than 1 "
-                                f"need {_able('heterogeneous').replace(' and ', ' or ')})")
+            raise ProtocolError(
+                f"{name} runs unit-speed teams only (agent periods other than 1 "
+                f"need {_able('heterogeneous').replace(' and ', ' or ')})"
+            )
     return spec
 
 
@@ -86,8 +113,9 @@ def settings_from(name: str, values: Mapping[str, Any]) -> Any:
         raise ProtocolError(f"{flags}: {exc}") from None
 
 
-def make_agents(scenario: Scenario, name: str, policy: CoordinationPolicy | None = None,
-                settings: Any = None) -> list[ProtocolAgent]:
+def make_agents(
+    scenario: Scenario, name: str, policy: CoordinationPolicy | None = None, settings: Any = None
+) -> list[ProtocolAgent]:
     """The team's agents, one per robot of the scenario, in id order."""
     policy = policy or CoordinationPolicy()
     spec = check(name, scenario=scenario, policy=policy)

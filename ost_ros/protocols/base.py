@@ -15,6 +15,7 @@ agent will take without a word (:mod:`ost_ros.protocols.plans`), ``skip`` tells 
 engine took some. At the end, ``summary`` is what the agent knows (what the result reports and
 what agents must agree on).
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
@@ -36,13 +37,13 @@ class ProtocolError(ValueError):
 class AgentSummary:
     """What an agent knows at the end of a run."""
 
-    trigger: str                          # the coordination trigger it ran (HCP: "help")
-    predicted_makespan: int | None        # what its schedule predicted (None: no prediction)
-    coordinations: int                    # coordinations (or negotiations) it took part in
-    schedule: tuple[Assignment, ...]      # the planned objects, in scheduling order
-    found: Mapping[int, int]              # object id -> step it learnt of it
-    warnings: tuple[str, ...]             # peers' messages it refused, and why
-    view: str                             # what all agents must hold alike (agreement)
+    trigger: str  # the coordination trigger it ran (HCP: "help")
+    predicted_makespan: int | None  # what its schedule predicted (None: no prediction)
+    coordinations: int  # coordinations (or negotiations) it took part in
+    schedule: tuple[Assignment, ...]  # the planned objects, in scheduling order
+    found: Mapping[int, int]  # object id -> step it learnt of it
+    warnings: tuple[str, ...]  # peers' messages it refused, and why
+    view: str  # what all agents must hold alike (agreement)
 
 
 class ProtocolAgent(Protocol):
@@ -102,21 +103,20 @@ class ProtocolAgent(Protocol):
         ...
 
     @property
-    def warnings(self) -> list[str]:
-        ...
+    def warnings(self) -> list[str]: ...
 
 
 @dataclass(frozen=True)
 class Capabilities:
     """What a protocol supports beyond the paper's basic run (the registry checks requests)."""
 
-    recovers_failures: bool = False        # survivors re-plan after a robot fails
-    organisations: tuple[str, ...] = ("distributed",)   # who coordinates (paper §3)
-    own_sweeps: bool = False               # robots with their own sweeps (negotiated areas)
-    heterogeneous: bool = False            # robots slower than one cell per step
-    triggers: bool = False                 # the coordination triggers (CI, interval, area)
-    team_knowledge: bool = False           # every agent holds the same public state: one comm
-                                           # module computes the whole run (analytic engine)
+    recovers_failures: bool = False  # survivors re-plan after a robot fails
+    organisations: tuple[str, ...] = ("distributed",)  # who coordinates (paper §3)
+    own_sweeps: bool = False  # robots with their own sweeps (negotiated areas)
+    heterogeneous: bool = False  # robots slower than one cell per step
+    triggers: bool = False  # the coordination triggers (CI, interval, area)
+    team_knowledge: bool = False  # every agent holds the same public state: one comm
+    # module computes the whole run (analytic engine)
 
 
 @dataclass(frozen=True)
@@ -138,21 +138,21 @@ class ProtocolSpec:
     """One protocol, as the registry knows it."""
 
     name: str
-    label: str                                       # a few words: "cost-balanced"
-    title: str                                       # one line, for --help and listings
+    label: str  # a few words: "cost-balanced"
+    title: str  # one line, for --help and listings
     make_agent: Callable[[int, TeamInfo, CoordinationPolicy, Any], ProtocolAgent]
-    messages: tuple[type, ...]                       # the agent messages it broadcasts
-    states: tuple[str, ...]                          # its global states, in FSA order
+    messages: tuple[type, ...]  # the agent messages it broadcasts
+    states: tuple[str, ...]  # its global states, in FSA order
     capabilities: Capabilities = Capabilities()
-    settings: type | None = None                     # its settings dataclass (shared by the team)
-    options: tuple[Option, ...] = ()                 # the settings users may set
-    channels: Mapping[str, tuple[type, ...]] = field(default_factory=dict)   # own transport
+    settings: type | None = None  # its settings dataclass (shared by the team)
+    options: tuple[Option, ...] = ()  # the settings users may set
+    channels: Mapping[str, tuple[type, ...]] = field(default_factory=dict)  # own transport
     # channels (beside "step"): which of its messages travel there
     team_comm: Callable[[TeamInfo, CoordinationPolicy, Any], Any] | None = None
     # with team_knowledge: the one comm module speaking for the whole team (analytic engine)
     silence: Callable[[Any, int], None] | None = None
     # fault injection (tests, demos): the agent sends no protocol moves from the given step on
-    note: str = ""                                   # for reports: what it is, beside the paper
+    note: str = ""  # for reports: what it is, beside the paper
 
     def default_settings(self) -> Any:
         return None if self.settings is None else self.settings()

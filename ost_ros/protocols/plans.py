@@ -13,6 +13,7 @@ places that skip steps:
 A plan is valid from the step it was made for, as long as no message reaches the agent and its
 sensor shows nothing it reacts to (the agent's ``news``); callers check the second condition.
 """
+
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator, Sequence
@@ -80,7 +81,7 @@ class Plan:
         return self.segments[k]
 
 
-NO_PLAN = Plan()   # the agent decides (and may speak) in the first step
+NO_PLAN = Plan()  # the agent decides (and may speak) in the first step
 
 
 @dataclass(frozen=True)

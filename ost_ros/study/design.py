@@ -1,4 +1,5 @@
 """The experimental design of the paper's §5, and the quick subset."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -9,7 +10,7 @@ from ost_ros.scenario import build_scenario, generate_objects
 
 GRID = Grid(500, 200)
 NMAX = 10
-PAPER = "ccp"   # the protocol the paper studies at every N and over the CI sweep (Figs 9–11, Table 3)
+PAPER = "ccp"  # the protocol the paper studies at every N and over the CI sweep (Figs 9–11, Table 3)
 
 
 @dataclass(frozen=True)
@@ -29,8 +30,13 @@ def compared() -> list[Variant]:
     """Every protocol of the registry as the study compares them at the compare sizes: those
     without coordination triggers (HCP) first, then each with triggers at CI=1 and CI=M."""
     specs = sorted(protocols.REGISTRY.values(), key=lambda s: s.capabilities.triggers)
-    return [v for s in specs for v in ([Variant(s.name, 1), Variant(s.name, "M")]
-                                       if s.capabilities.triggers else [Variant(s.name)])]
+    return [
+        v
+        for s in specs
+        for v in (
+            [Variant(s.name, 1), Variant(s.name, "M")] if s.capabilities.triggers else [Variant(s.name)]
+        )
+    ]
 
 
 @dataclass(frozen=True)
@@ -56,13 +62,12 @@ class Design:
     objects: tuple[int, ...] = (1, 10, 20, 30, 40, 50, 100, 200)
     sets: int = 10
     cis: tuple[int, ...] = (1, 10, 20, 30, 40, 50, 100, 200)
-    compare_agents: tuple[int, ...] = (10, 50)   # Figs 7–10: HCP vs CCP, the CI sweep
+    compare_agents: tuple[int, ...] = (10, 50)  # Figs 7–10: HCP vs CCP, the CI sweep
     seed: int = 1
 
     @classmethod
     def quick(cls, seed: int = 1) -> Design:
-        return cls(agents=(10, 20, 50), objects=(1, 10, 50, 100), sets=2, cis=(1, 10, 50, 100),
-                   seed=seed)
+        return cls(agents=(10, 20, 50), objects=(1, 10, 50, 100), sets=2, cis=(1, 10, 50, 100), seed=seed)
 
     def object_seed(self, m: int, s: int) -> int:
         """Seed of object set s for M objects: the same set for every N (as in the paper)."""

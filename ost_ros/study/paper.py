@@ -1,4 +1,5 @@
 """The paper's published numbers we compare against (Lin & Hsu, §2.1 Table 1, §5.2 Table 3)."""
+
 from __future__ import annotations
 
 # Table 1: order (log10) of the Optimal-OST search space for N = 10 agents.

@@ -1,4 +1,5 @@
 """Tables, plots (matplotlib, Agg) and report.md of a reproduction run."""
+
 from __future__ import annotations
 
 import csv
@@ -12,7 +13,7 @@ from ost_ros.study.design import PAPER, Design, compared
 from ost_ros.study.paper import TABLE1, TABLE3, TABLE3_AGENTS
 from ost_ros.study.runner import Row, Timing, row_dicts
 
-PRIMARY = "CCP CI=1"   # the setting of Fig. 11 / Table 3 we compare cell by cell (see docs)
+PRIMARY = "CCP CI=1"  # the setting of Fig. 11 / Table 3 we compare cell by cell (see docs)
 
 
 def means(rows: list[Row]) -> dict[tuple[int, int, str], float]:
@@ -44,9 +45,15 @@ def write_csv(path: Path, dicts: list[dict]) -> None:
 # ----------------------------------------------------------------------------- plots
 
 
-def _plot(path: Path, title: str, xs: list[int], series: dict[str, list[float | None]],
-          ylabel: str = "execution time (steps)") -> None:
+def _plot(
+    path: Path,
+    title: str,
+    xs: list[int],
+    series: dict[str, list[float | None]],
+    ylabel: str = "execution time (steps)",
+) -> None:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -71,16 +78,28 @@ def plots(out: Path, design: Design, c: dict) -> list[str]:
     for fig, n in (("fig7", 10), ("fig8", 50)):
         if n in design.compare_agents:
             labels = [v.label for v in compared()]
-            _plot(out / f"{fig}.png", f"The protocols compared, N={n}", ms,
-                  {v: [c.get((n, m, v)) for m in ms] for v in labels})
+            _plot(
+                out / f"{fig}.png",
+                f"The protocols compared, N={n}",
+                ms,
+                {v: [c.get((n, m, v)) for m in ms] for v in labels},
+            )
             files.append(f"{fig}.png")
     for fig, n in (("fig9", 10), ("fig10", 50)):
         if n in design.compare_agents:
-            _plot(out / f"{fig}.png", f"CCP, coordination intervals, N={n}", ms,
-                  {f"CI={ci}": [c.get((n, m, f"CCP CI={ci}")) for m in ms] for ci in design.cis})
+            _plot(
+                out / f"{fig}.png",
+                f"CCP, coordination intervals, N={n}",
+                ms,
+                {f"CI={ci}": [c.get((n, m, f"CCP CI={ci}")) for m in ms] for ci in design.cis},
+            )
             files.append(f"{fig}.png")
-    _plot(out / "fig11.png", f"CCP ({PRIMARY[4:]}), agents N", ms,
-          {f"N={n}": [c.get((n, m, PRIMARY)) for m in ms] for n in design.agents})
+    _plot(
+        out / "fig11.png",
+        f"CCP ({PRIMARY[4:]}), agents N",
+        ms,
+        {f"N={n}": [c.get((n, m, PRIMARY)) for m in ms] for n in design.agents},
+    )
     files.append("fig11.png")
     return files
 
@@ -103,9 +122,11 @@ def claim_ccp_beats_hcp(design: Design, c: dict) -> tuple[bool, str]:
                 ratio = x / h
                 if worst is None or ratio > worst[0]:
                     worst = (ratio, n, m, v)
-    text = (f"CCP's mean time is below HCP's in {wins} of {cells} (N, M, CI) cells"
-            + (f"; the closest cell is N={worst[1]}, M={worst[2]}, {worst[3]} at "
-               f"{worst[0]:.2f}× HCP" if worst else ""))
+    text = f"CCP's mean time is below HCP's in {wins} of {cells} (N, M, CI) cells" + (
+        f"; the closest cell is N={worst[1]}, M={worst[2]}, {worst[3]} at {worst[0]:.2f}× HCP"
+        if worst
+        else ""
+    )
     return wins == cells and cells > 0, text
 
 
@@ -129,10 +150,12 @@ def claim_larger_ci(design: Design, c: dict) -> tuple[bool, str]:
     share = better / pairs if pairs else 0.0
     gap_text = ", ".join(f"N={n}: {100 * g:.1f}%" for n, g in gaps.items())
     shrinks = len(gaps) < 2 or gaps[max(gaps)] < gaps[min(gaps)]
-    text = (f"of {pairs} pairs of different CIs (same N, M) with different times, the larger CI "
-            f"is faster in {better} ({100 * share:.0f}%); mean advantage of CI=M over CI=1: "
-            f"{gap_text} ({'smaller' if shrinks else 'not smaller'} with more agents, "
-            f"as the paper says it is)")
+    text = (
+        f"of {pairs} pairs of different CIs (same N, M) with different times, the larger CI "
+        f"is faster in {better} ({100 * share:.0f}%); mean advantage of CI=M over CI=1: "
+        f"{gap_text} ({'smaller' if shrinks else 'not smaller'} with more agents, "
+        f"as the paper says it is)"
+    )
     return share > 0.5, text
 
 
@@ -158,11 +181,17 @@ def _speedup_cells(design: Design, c: dict, variant: str) -> tuple[int, int, tup
 def claim_speedup(design: Design, c: dict) -> tuple[bool, str]:
     cells, ok, low = _speedup_cells(design, c, PRIMARY)
     other_cells, other_ok, other_low = _speedup_cells(design, c, "CCP CI=M")
-    text = (f"S_N ≥ 1 in {ok} of {cells} cells with M > 30 ({PRIMARY})"
-            + (f"; lowest S_{low[1]} = {low[0]:.2f} at M={low[2]}" if low else "")
-            + f". With CI=M it is {other_ok} of {other_cells}"
-            + (f" (lowest S_{other_low[1]} = {other_low[0]:.2f} at M={other_low[2]}): the claim "
-               "depends on the CI, see the differences below" if other_low else ""))
+    text = (
+        f"S_N ≥ 1 in {ok} of {cells} cells with M > 30 ({PRIMARY})"
+        + (f"; lowest S_{low[1]} = {low[0]:.2f} at M={low[2]}" if low else "")
+        + f". With CI=M it is {other_ok} of {other_cells}"
+        + (
+            f" (lowest S_{other_low[1]} = {other_low[0]:.2f} at M={other_low[2]}): the claim "
+            "depends on the CI, see the differences below"
+            if other_low
+            else ""
+        )
+    )
     return cells > 0 and ok >= 0.5 * cells, text
 
 
@@ -189,21 +218,34 @@ def write_all(out: Path, design: Design, rows: list[Row], timing: Timing, quick:
     write_csv(out / "runs.csv", row_dicts(rows))
     summary = []
     for (n, m, v), mean in sorted(c.items()):
-        bound = statistics.fmean(r.lower_bound for r in rows
-                                 if (r.agents, r.objects, r.variant) == (n, m, v))
-        summary.append({"agents": n, "objects": m, "variant": v, "mean_makespan": round(mean, 1),
-                        "mean_lower_bound": round(bound, 1), "ratio_to_bound": round(mean / bound, 3)})
+        bound = statistics.fmean(r.lower_bound for r in rows if (r.agents, r.objects, r.variant) == (n, m, v))
+        summary.append(
+            {
+                "agents": n,
+                "objects": m,
+                "variant": v,
+                "mean_makespan": round(mean, 1),
+                "mean_lower_bound": round(bound, 1),
+                "ratio_to_bound": round(mean / bound, 3),
+            }
+        )
     write_csv(out / "summary.csv", summary)
     t3 = {v: table3_rows(design, c, v) for v in ("CCP CI=1", "CCP CI=M")}
     write_csv(out / "table3.csv", [dict(variant=v, **r) for v, rs in t3.items() for r in rs])
-    t1 = [{"M": m, "order_ours": round(search_space_order(m, 10), 2), "order_paper": o}
-          for m, o in TABLE1.items()]
+    t1 = [
+        {"M": m, "order_ours": round(search_space_order(m, 10), 2), "order_paper": o}
+        for m, o in TABLE1.items()
+    ]
     write_csv(out / "table1.csv", t1)
     figs = plots(out, design, c)
-    claims = [("1. CCP is better than HCP, whatever the CI", *claim_ccp_beats_hcp(design, c)),
-              ("2. A larger CI is generally better (and CI matters less with more agents)",
-               *claim_larger_ci(design, c)),
-              ("3. Linear or superlinear speedup for M > 30", *claim_speedup(design, c))]
+    claims = [
+        ("1. CCP is better than HCP, whatever the CI", *claim_ccp_beats_hcp(design, c)),
+        (
+            "2. A larger CI is generally better (and CI matters less with more agents)",
+            *claim_larger_ci(design, c),
+        ),
+        ("3. Linear or superlinear speedup for M > 30", *claim_speedup(design, c)),
+    ]
     md = _markdown(design, c, rows, timing, quick, t1, t3, figs, claims)
     (out / "report.md").write_text(md)
     return out / "report.md"
@@ -217,16 +259,22 @@ def _markdown(design, c, rows, timing, quick, t1, t3, figs, claims) -> str:
     L = []
     L.append(f"# Reproduction of Lin & Hsu's simulation study{' (quick subset)' if quick else ''}")
     L.append("")
-    L.append(f"- design: area 500×200, N ∈ {list(design.agents)}, M ∈ {list(design.objects)}, "
-             f"{design.sets} object sets per M (n_max = 10, seed {design.seed}); HCP and the CI "
-             f"sweep {list(design.cis)} at N ∈ {list(design.compare_agents)}; CCP CI=1 and CI=M "
-             "at every N.")
-    L.append(f"- {len(rows)} runs, event-driven engine (identical to the step simulator), "
-             f"{timing.workers} worker processes: wall time **{timing.wall:.1f} s**, "
-             f"{timing.cpu:.1f} CPU s in the workers, load average {timing.load:.1f} at the end "
-             f"(above {timing.workers} means other programs shared the cores).")
-    L.append("- files: runs.csv (every run), summary.csv (means, lower bound), table1.csv, "
-             "table3.csv, " + ", ".join(figs))
+    L.append(
+        f"- design: area 500×200, N ∈ {list(design.agents)}, M ∈ {list(design.objects)}, "
+        f"{design.sets} object sets per M (n_max = 10, seed {design.seed}); HCP and the CI "
+        f"sweep {list(design.cis)} at N ∈ {list(design.compare_agents)}; CCP CI=1 and CI=M "
+        "at every N."
+    )
+    L.append(
+        f"- {len(rows)} runs, event-driven engine (identical to the step simulator), "
+        f"{timing.workers} worker processes: wall time **{timing.wall:.1f} s**, "
+        f"{timing.cpu:.1f} CPU s in the workers, load average {timing.load:.1f} at the end "
+        f"(above {timing.workers} means other programs shared the cores)."
+    )
+    L.append(
+        "- files: runs.csv (every run), summary.csv (means, lower bound), table1.csv, "
+        "table3.csv, " + ", ".join(figs)
+    )
     L.append("")
     L.append("## The paper's claims")
     L.append("")
@@ -258,9 +306,11 @@ def _markdown(design, c, rows, timing, quick, t1, t3, figs, claims) -> str:
         if diffs:
             L.append("")
             mean = statistics.fmean(signed)
-            L.append(f"Mean |ours − paper| over the N > 10 cells: {statistics.fmean(diffs):.3f}; "
-                     f"largest {max(diffs):.2f}; mean signed difference {mean:+.3f} (ours "
-                     f"{'above' if mean > 0 else 'below'} the paper on average).")
+            L.append(
+                f"Mean |ours − paper| over the N > 10 cells: {statistics.fmean(diffs):.3f}; "
+                f"largest {max(diffs):.2f}; mean signed difference {mean:+.3f} (ours "
+                f"{'above' if mean > 0 else 'below'} the paper on average)."
+            )
     L.append("")
     L.append("## Mean execution time (steps), Figs 7–11")
     L.append("")
@@ -272,10 +322,13 @@ def _markdown(design, c, rows, timing, quick, t1, t3, figs, claims) -> str:
         L.append("| M | " + " | ".join(present) + " |")
         L.append("|" + "---|" * (len(present) + 1))
         for m in design.objects:
-            L.append(f"| {m} | " + " | ".join(_fmt(round(c[(n, m, v)])) if (n, m, v) in c else "–"
-                                             for v in present) + " |")
+            L.append(
+                f"| {m} | "
+                + " | ".join(_fmt(round(c[(n, m, v)])) if (n, m, v) in c else "–" for v in present)
+                + " |"
+            )
         L.append("")
-    for spec in protocols.REGISTRY.values():   # our protocols beside the paper's
+    for spec in protocols.REGISTRY.values():  # our protocols beside the paper's
         if spec.name != PAPER and spec.capabilities.triggers:
             L.extend(_beside_paper(design, c, spec))
     L.append("## Table 1: order of the Optimal-OST search space, N = 10")
@@ -283,7 +336,7 @@ def _markdown(design, c, rows, timing, quick, t1, t3, figs, claims) -> str:
     L.append("| M | ours: log10(M!·E[C(10,i)]^M) | paper |")
     L.append("|---|---|---|")
     for r in t1:
-        L.append(f"| {r['M']} | {r["order_ours"]:.2f} | 10^{r['order_paper']} |")
+        L.append(f"| {r['M']} | {r['order_ours']:.2f} | 10^{r['order_paper']} |")
     L.append("")
     L.append("## Where we differ from the paper, and why we think so")
     L.append("")
@@ -296,16 +349,26 @@ def _column(variant: str) -> tuple:
     names = list(protocols.REGISTRY)
     spec = protocols.get(variant.split()[0].lower())
     ci = variant.partition("=")[2]
-    return (spec.capabilities.triggers, spec.name != PAPER, names.index(spec.name), ci != "M",
-            int(ci) if ci.isdigit() else 0)
+    return (
+        spec.capabilities.triggers,
+        spec.name != PAPER,
+        names.index(spec.name),
+        ci != "M",
+        int(ci) if ci.isdigit() else 0,
+    )
 
 
 def _beside_paper(design: Design, c: dict, spec: protocols.ProtocolSpec) -> list[str]:
     """A protocol next to CCP at the same CI: mean time ratio per (N, CI), and where it wins."""
     name, base = spec.name.upper(), PAPER.upper()
-    L = [f"## {name} ({spec.label}) next to {base}", "",
-         f"{spec.note} Ratio = mean {name} time / mean {base} time at the same CI.", "",
-         f"| N | CI | M: ratio {name}/{base} | {name} faster in |", "|---|---|---|---|"]
+    L = [
+        f"## {name} ({spec.label}) next to {base}",
+        "",
+        f"{spec.note} Ratio = mean {name} time / mean {base} time at the same CI.",
+        "",
+        f"| N | CI | M: ratio {name}/{base} | {name} faster in |",
+        "|---|---|---|---|",
+    ]
     for n in design.compare_agents:
         for ci in ("1", "M"):
             cells, wins, total = [], 0, 0

@@ -1,5 +1,6 @@
 """Runs a design's tasks on every core (multiprocessing, forkserver: the CLI process may hold
 threads, e.g. of rclpy, so plain fork is unsafe), with a progress bar."""
+
 from __future__ import annotations
 
 import os
@@ -40,35 +41,52 @@ def run_task(task: Task) -> tuple[list[Row], float]:
     rows = []
     done: dict[tuple[str, int], RunResult] = {}
     for v in task.variants:
-        if v.ci is None:   # a protocol without coordination triggers
+        if v.ci is None:  # a protocol without coordination triggers
             r = simulate(scenario, v.protocol, engine="event")
         else:
             ci = task.objects if v.ci == "M" else int(v.ci)
             # Every CI > M is the same run (coordination only once everyone has searched).
             ci = min(max(ci, 1), task.objects + 1)
             if (v.protocol, ci) not in done:
-                done[(v.protocol, ci)] = simulate(scenario, v.protocol, CoordinationPolicy(ci=ci),
-                                                  engine="event")
+                done[(v.protocol, ci)] = simulate(
+                    scenario, v.protocol, CoordinationPolicy(ci=ci), engine="event"
+                )
             r = done[(v.protocol, ci)]
         if not r.completed or r.rejections or r.warnings:
-            raise RuntimeError(f"{v.label} on N={task.agents} M={task.objects} set {task.set}: "
-                               f"{r.error or (r.rejections + r.warnings)[:1]}")
-        rows.append(Row(task.agents, task.objects, task.set, task.seed, v.label, v.protocol,
-                        "" if v.ci is None else str(v.ci), int(r.makespan or 0), r.last_delivery, bound,
-                        r.messages, r.coordinations))
+            raise RuntimeError(
+                f"{v.label} on N={task.agents} M={task.objects} set {task.set}: "
+                f"{r.error or (r.rejections + r.warnings)[:1]}"
+            )
+        rows.append(
+            Row(
+                task.agents,
+                task.objects,
+                task.set,
+                task.seed,
+                v.label,
+                v.protocol,
+                "" if v.ci is None else str(v.ci),
+                int(r.makespan or 0),
+                r.last_delivery,
+                bound,
+                r.messages,
+                r.coordinations,
+            )
+        )
     return rows, time.process_time() - cpu
 
 
 @dataclass(frozen=True)
 class Timing:
-    wall: float      # seconds, start to finish of the runs
-    cpu: float       # CPU seconds summed over the workers
+    wall: float  # seconds, start to finish of the runs
+    cpu: float  # CPU seconds summed over the workers
     workers: int
-    load: float      # 1-minute load average when the runs ended (a shared machine shows here)
+    load: float  # 1-minute load average when the runs ended (a shared machine shows here)
 
 
-def run_design(design: Design, workers: int | None = None, progress: bool | None = None
-               ) -> tuple[list[Row], Timing]:
+def run_design(
+    design: Design, workers: int | None = None, progress: bool | None = None
+) -> tuple[list[Row], Timing]:
     """All runs of the design (sorted), and how long they took."""
     tasks = design.tasks()
     workers = workers or os.cpu_count() or 1

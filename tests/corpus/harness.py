@@ -1,4 +1,5 @@
 """Running the corpus: each command in-process through ``ost``'s own ``main``, output hashed."""
+
 from __future__ import annotations
 
 import contextlib
@@ -10,7 +11,7 @@ from pathlib import Path
 
 from ost_ros.cli import main
 
-try:   # run as a test module or as a script
+try:  # run as a test module or as a script
     from corpus.runs import REPRODUCTIONS, STATE, commands
 except ImportError:  # pragma: no cover
     from runs import REPRODUCTIONS, STATE, commands  # type: ignore[no-redef]

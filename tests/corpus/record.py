@@ -1,7 +1,8 @@
 """Record the corpus's outputs into ``expected.json`` (only when behaviour is meant to change).
 
-    .venv/bin/python tests/corpus/record.py
+.venv/bin/python tests/corpus/record.py
 """
+
 from __future__ import annotations
 
 import json

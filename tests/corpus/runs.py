@@ -10,6 +10,7 @@ of the corpus), into a scratch folder named by ``{dir}`` in the arguments.
 
 Re-record only when a change of behaviour is intended: ``python tests/corpus/record.py``.
 """
+
 from __future__ import annotations
 
 # name -> (size, grid, nmax, periods): the scenarios every run below uses
@@ -25,8 +26,21 @@ SCENARIOS: dict[str, tuple[tuple[int, int, int], tuple[int, int], int, str | Non
 def generate_commands() -> list[tuple[str, list[str]]]:
     out = []
     for name, ((n, m, seed), (w, h), nmax, periods) in SCENARIOS.items():
-        argv = ["generate", "--agents", str(n), "--objects", str(m), "--seed", str(seed),
-                "--width", str(w), "--height", str(h), "--nmax", str(nmax)]
+        argv = [
+            "generate",
+            "--agents",
+            str(n),
+            "--objects",
+            str(m),
+            "--seed",
+            str(seed),
+            "--width",
+            str(w),
+            "--height",
+            str(h),
+            "--nmax",
+            str(nmax),
+        ]
         if periods:
             argv += ["--periods", periods]
         out.append((f"generate-{name}", argv + ["-o", "{dir}/" + name + ".yaml"]))
@@ -38,8 +52,12 @@ def sim_commands() -> list[tuple[str, list[str]]]:
 
     def sim(label: str, scenario: str, *flags: str, engines=("step", "event")) -> None:
         for engine in engines:
-            out.append((f"sim-{scenario}-{label}-{engine}",
-                        ["sim", "{dir}/" + scenario + ".yaml", *flags, "--engine", engine, "--json"]))
+            out.append(
+                (
+                    f"sim-{scenario}-{label}-{engine}",
+                    ["sim", "{dir}/" + scenario + ".yaml", *flags, "--engine", engine, "--json"],
+                )
+            )
 
     for sc in ("small", "mid", "paper", "crowd"):
         sim("ccp-ci1", sc, "--protocol", "ccp", "--ci", "1")
@@ -55,8 +73,17 @@ def sim_commands() -> list[tuple[str, list[str]]]:
     sim("ccp-agents8", "mid", "--protocol", "ccp", "--ci", "2", "--agents", "8")
     sim("hcp-agents5", "crowd", "--protocol", "hcp", "--agents", "5")
     for sc in ("small", "crowd", "hetero"):
-        sim("coordinator", sc, "--protocol", "ccp", "--ci", "2", "--coordination", "coordinator",
-            engines=("step",))
+        sim(
+            "coordinator",
+            sc,
+            "--protocol",
+            "ccp",
+            "--ci",
+            "2",
+            "--coordination",
+            "coordinator",
+            engines=("step",),
+        )
     sim("fail-ccp", "crowd", "--protocol", "ccp", "--fail", "2:40", "--fail", "5:120", engines=("step",))
     sim("fail-ccp", "hetero", "--protocol", "ccp", "--ci", "2", "--fail", "1:60", engines=("step",))
     sim("fail-ccp", "paper", "--protocol", "ccp", "--fail", "3:500", engines=("step",))
@@ -75,19 +102,26 @@ def other_commands() -> list[tuple[str, list[str]]]:
         ("optimal-small", ["optimal", "{dir}/small.yaml", "--json"]),
         ("schedule-state", ["schedule", "{dir}/state.json", "--json"]),
         ("partition-hetero", ["negotiate", "partition", "--scenario", "{dir}/hetero.yaml", "--json"]),
-        ("negotiate-targets", ["negotiate", "run", "--task", "targets", "--robots", "3",
-                               "--targets", "6", "--json"]),
+        (
+            "negotiate-targets",
+            ["negotiate", "run", "--task", "targets", "--robots", "3", "--targets", "6", "--json"],
+        ),
         ("faults-quick", ["faults", "report", "--quick", "--json"]),
     ]
 
 
 # A coordination state for ``ost schedule`` (written beside the scenarios).
 STATE = {
-    "agents": [{"id": 0, "cost": 0, "location": [0, 0]}, {"id": 1, "cost": 5, "location": [9, 3]},
-               {"id": 2, "cost": 2, "location": [4, 8]}],
-    "objects": [{"id": 0, "location": [3, 3], "destination": [8, 8], "required": 2},
-                {"id": 1, "location": [7, 1], "destination": [0, 9], "required": 1},
-                {"id": 2, "location": [5, 5], "destination": [5, 0], "required": 3}],
+    "agents": [
+        {"id": 0, "cost": 0, "location": [0, 0]},
+        {"id": 1, "cost": 5, "location": [9, 3]},
+        {"id": 2, "cost": 2, "location": [4, 8]},
+    ],
+    "objects": [
+        {"id": 0, "location": [3, 3], "destination": [8, 8], "required": 2},
+        {"id": 1, "location": [7, 1], "destination": [0, 9], "required": 1},
+        {"id": 2, "location": [5, 5], "destination": [5, 0], "required": 3},
+    ],
 }
 
 # Directory outputs: every file but pictures; lines with wall times are left out of reports.

@@ -1,4 +1,5 @@
 """The JSON codec: every registered message round-trips; invalid input names the field."""
+
 import json
 
 import pytest
@@ -44,17 +45,45 @@ all_msgs = st.one_of(
     st.builds(StepMessages, ints, ints, st.lists(protocol_msgs, max_size=4).map(tuple)),
     st.builds(Ready, ints, st.text(max_size=8), st.text(max_size=8)),
     st.builds(RunEnd, ints, ints, st.booleans(), st.lists(ints, max_size=3).map(tuple)),
-    st.builds(Tick, ints, ints, st.builds(Observation, ints, ints, cells, st.lists(infos, max_size=2).map(tuple)),
-              st.lists(ints, max_size=3).map(tuple)),
-    st.builds(Acted, st.builds(Action, ints, ints, st.sampled_from(list(ActionKind)), cells, ints),
-              ints, st.lists(st.builds(PlanStep, cells, st.booleans(), st.lists(ints, max_size=3).map(tuple),
-                                       st.sampled_from(list(ActionKind)), cells, ints, st.text(max_size=5)),
-                             max_size=3).map(tuple)),
-    st.builds(AgentReport, ints, st.text(max_size=5), st.text(max_size=5), st.none() | ints, ints,
-              st.lists(st.builds(ScheduleEntry, ints, st.lists(ints, max_size=3).map(tuple), ints, ints),
-                       max_size=3).map(tuple),
-              st.lists(st.tuples(ints, ints), max_size=3).map(tuple),
-              st.lists(st.text(max_size=12), max_size=2).map(tuple), ints),
+    st.builds(
+        Tick,
+        ints,
+        ints,
+        st.builds(Observation, ints, ints, cells, st.lists(infos, max_size=2).map(tuple)),
+        st.lists(ints, max_size=3).map(tuple),
+    ),
+    st.builds(
+        Acted,
+        st.builds(Action, ints, ints, st.sampled_from(list(ActionKind)), cells, ints),
+        ints,
+        st.lists(
+            st.builds(
+                PlanStep,
+                cells,
+                st.booleans(),
+                st.lists(ints, max_size=3).map(tuple),
+                st.sampled_from(list(ActionKind)),
+                cells,
+                ints,
+                st.text(max_size=5),
+            ),
+            max_size=3,
+        ).map(tuple),
+    ),
+    st.builds(
+        AgentReport,
+        ints,
+        st.text(max_size=5),
+        st.text(max_size=5),
+        st.none() | ints,
+        ints,
+        st.lists(
+            st.builds(ScheduleEntry, ints, st.lists(ints, max_size=3).map(tuple), ints, ints), max_size=3
+        ).map(tuple),
+        st.lists(st.tuples(ints, ints), max_size=3).map(tuple),
+        st.lists(st.text(max_size=12), max_size=2).map(tuple),
+        ints,
+    ),
 )
 
 
@@ -74,18 +103,21 @@ def _obs() -> dict:
     return json.loads(encode(Observation(1, 3, (2, 3), (ObjectInfo(1, (1, 2), (3, 4), 2),))))
 
 
-@pytest.mark.parametrize("mutate, field", [
-    (lambda d: d.pop("t"), "observation.t: missing"),
-    (lambda d: d.update(t="3"), "observation.t: expected an integer"),
-    (lambda d: d.update(t=True), "observation.t: expected an integer"),
-    (lambda d: d.update(extra=1), "observation.extra: unknown field"),
-    (lambda d: d.update(version=2), "observation.version: unsupported version 2"),
-    (lambda d: d.pop("version"), "observation.version: missing"),
-    (lambda d: d.update(type="nope"), "message.type: unknown message type"),
-    (lambda d: d["sensed"][0].update(location=[1, "a"]), "observation.sensed[0].location[1]"),
-    (lambda d: d["sensed"][0].update(location=[1, 2, 3]), "observation.sensed[0].location: expected 2"),
-    (lambda d: d.update(position=None), "observation.position: expected a list"),
-])
+@pytest.mark.parametrize(
+    "mutate, field",
+    [
+        (lambda d: d.pop("t"), "observation.t: missing"),
+        (lambda d: d.update(t="3"), "observation.t: expected an integer"),
+        (lambda d: d.update(t=True), "observation.t: expected an integer"),
+        (lambda d: d.update(extra=1), "observation.extra: unknown field"),
+        (lambda d: d.update(version=2), "observation.version: unsupported version 2"),
+        (lambda d: d.pop("version"), "observation.version: missing"),
+        (lambda d: d.update(type="nope"), "message.type: unknown message type"),
+        (lambda d: d["sensed"][0].update(location=[1, "a"]), "observation.sensed[0].location[1]"),
+        (lambda d: d["sensed"][0].update(location=[1, 2, 3]), "observation.sensed[0].location: expected 2"),
+        (lambda d: d.update(position=None), "observation.position: expected a list"),
+    ],
+)
 def test_invalid_fields_are_named(mutate, field):
     d = _obs()
     mutate(d)

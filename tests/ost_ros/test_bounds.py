@@ -1,5 +1,6 @@
 """The makespan lower bound: hand-computed terms on a tiny scenario, and never above any run's
 makespan (CCP under every trigger, HCP) on random scenarios."""
+
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -25,8 +26,11 @@ def test_hand_computed_terms():
 @given(scenarios(width=(4, 40), height=(3, 16), agents=(1, 8), objects=(0, 14)), st.integers(1, 15))
 def test_bound_never_exceeds_a_run(scenario, ci):
     b = lower_bound(scenario).value
-    for proto, policy in (("ccp", CoordinationPolicy(ci=ci)),
-                          ("ccp", CoordinationPolicy(interval=ci)), ("hcp", CoordinationPolicy())):
+    for proto, policy in (
+        ("ccp", CoordinationPolicy(ci=ci)),
+        ("ccp", CoordinationPolicy(interval=ci)),
+        ("hcp", CoordinationPolicy()),
+    ):
         assert simulate_events(scenario, proto, policy).makespan >= b
 
 

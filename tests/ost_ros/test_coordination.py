@@ -1,5 +1,6 @@
 """Algorithm Coordination: hand-computed cases, ties, and the numpy version against a plain
 transcription of the paper's pseudo-code."""
+
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -111,16 +112,16 @@ def test_schedule_invariants(inst):
     ids, cost, loc, objs = inst
     r = coordinate(ids, cost, loc, objs)
     by_id = {o.id: o for o in objs}
-    assert sorted(a.object for a in r.schedule) == sorted(by_id)       # each object once
+    assert sorted(a.object for a in r.schedule) == sorted(by_id)  # each object once
     free = dict(zip(ids, cost))
     where = dict(zip(ids, (tuple(x) for x in loc)))
     for a in r.schedule:
         o = by_id[a.object]
-        assert len(set(a.agents)) == o.required                          # exactly n_i agents
+        assert len(set(a.agents)) == o.required  # exactly n_i agents
         arrivals = [free[j] + manhattan(where[j], o.location) for j in a.agents]
-        assert max(arrivals) == a.start                                  # start = last arrival
+        assert max(arrivals) == a.start  # start = last arrival
         assert a.finish == a.start + manhattan(o.location, o.destination)
-        for j in a.agents:                                               # no agent double-booked
+        for j in a.agents:  # no agent double-booked
             assert free[j] <= a.start
             free[j], where[j] = a.finish, o.destination
 

@@ -1,6 +1,7 @@
 """Optimal-OST: the pruned search finds exactly what plain enumeration of all object orders ×
 agent groups finds; CCP is never better than it; on a scenario the CCP comparison is the
 simulated CCP run; Table 1's orders of magnitude."""
+
 import itertools
 
 from hypothesis import given, settings
@@ -83,5 +84,4 @@ def test_node_budget_reports_unproven():
 
 
 def test_table1_orders():
-    assert [int(search_space_order(m, 10)) for m in (10, 20, 30, 40, 50, 100)] == \
-        [26, 58, 92, 128, 164, 358]
+    assert [int(search_space_order(m, 10)) for m in (10, 20, 30, 40, 50, 100)] == [26, 58, 92, 128, 164, 358]

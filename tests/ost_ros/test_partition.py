@@ -1,4 +1,5 @@
 """Equal partition: the paper's Table 2, the aspect-ratio rule, and exact tiling."""
+
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -13,7 +14,7 @@ def test_table2(n, expected):
 
 
 def test_other_counts_follow_aspect_ratio():
-    assert choose_partition(4, Grid(500, 200)) == (4, 1)     # m/n = 4 is nearest 2.5 (vs 1)
+    assert choose_partition(4, Grid(500, 200)) == (4, 1)  # m/n = 4 is nearest 2.5 (vs 1)
     assert choose_partition(9, Grid(300, 300)) == (3, 3)
     assert choose_partition(1, Grid(500, 200)) == (1, 1)
     assert choose_partition(7, Grid(10, 100)) == (1, 7)
@@ -33,6 +34,7 @@ def test_subareas_tile_the_grid(w, h, m, n):
     assert len(areas) == m * n
     assert sum(a.width * a.height for a in areas) == w * h
     assert max(a.width for a in areas) - min(a.width for a in areas) <= 1
-    covered = {(x, y) for a in areas for x in range(a.x0, a.x0 + a.width)
-               for y in range(a.y0, a.y0 + a.height)}
+    covered = {
+        (x, y) for a in areas for x in range(a.x0, a.x0 + a.width) for y in range(a.y0, a.y0 + a.height)
+    }
     assert len(covered) == w * h

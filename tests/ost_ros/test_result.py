@@ -1,4 +1,5 @@
 """RunResult: JSON round trip (result files written by a DDS run are read back by tools)."""
+
 from ost_ros.bounds import lower_bound
 from ost_ros.engines import simulate
 from ost_ros.model import Grid

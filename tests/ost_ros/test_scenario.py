@@ -1,4 +1,5 @@
 """Scenario files: generation, round trip, and every kind of bad input naming its field."""
+
 import pytest
 import yaml
 
@@ -38,16 +39,21 @@ def test_dump_load_round_trip(tmp_path):
 
 
 def test_defaults_team_from_partition():
-    s = scenario_from_dict({"grid": {"width": 20, "height": 10}, "partition": [2, 1],
-                            "objects": [{"id": 0, "location": [1, 1], "destination": [5, 5],
-                                         "required": 2}]})
+    s = scenario_from_dict(
+        {
+            "grid": {"width": 20, "height": 10},
+            "partition": [2, 1],
+            "objects": [{"id": 0, "location": [1, 1], "destination": [5, 5], "required": 2}],
+        }
+    )
     assert [a.base for a in s.agents] == [(0, 1), (10, 1)]
     assert s.nmax == 2
 
 
 def test_agents_without_base_get_their_subarea_start():
-    s = scenario_from_dict({"grid": {"width": 20, "height": 10},
-                            "agents": [{"id": 4}, {"id": 2, "base": [3, 3]}], "objects": []})
+    s = scenario_from_dict(
+        {"grid": {"width": 20, "height": 10}, "agents": [{"id": 4}, {"id": 2, "base": [3, 3]}], "objects": []}
+    )
     assert [(a.id, a.base) for a in s.agents] == [(2, (3, 3)), (4, (10, 1))]
 
 
@@ -57,8 +63,11 @@ def test_with_team_keeps_objects():
     assert t.objects == s.objects and t.partition == (5, 4) and len(t.agents) == 20
 
 
-GOOD = {"grid": {"width": 20, "height": 10}, "partition": [2, 1],
-        "objects": [{"id": 0, "location": [1, 1], "destination": [5, 5], "required": 2}]}
+GOOD = {
+    "grid": {"width": 20, "height": 10},
+    "partition": [2, 1],
+    "objects": [{"id": 0, "location": [1, 1], "destination": [5, 5], "required": 2}],
+}
 
 
 def variant(path, value):
@@ -73,27 +82,30 @@ def variant(path, value):
     return data
 
 
-@pytest.mark.parametrize("data,needle", [
-    (variant(["colour"], "red"), "unknown key 'colour'"),
-    (variant(["objects", 0, "weight"], 3), "objects[0]: unknown key 'weight'"),
-    (variant(["objects", 0, "location"], [25, 1]), "objects[0].location: [25, 1] is off the 20x10 grid"),
-    (variant(["objects", 0, "destination"], [1, -1]), "objects[0].destination: [1, -1] is off"),
-    (variant(["objects", 0, "destination"], [1, 1]), "objects[0].destination: equals its location"),
-    (variant(["objects", 0, "required"], 3), "nmax: 3 exceeds the team of 2 agents"),
-    (variant(["objects", 0, "required"], 0), "objects[0].required: must be at least 1"),
-    (variant(["objects", 0, "required"], "two"), "objects[0].required: expected an integer"),
-    (variant(["objects", 0, "location"], [1]), "objects[0].location: expected [x, y]"),
-    (variant(["objects", 0, "id"], KeyError), "objects[0]: missing key 'id'"),
-    (variant(["grid", "width"], -5), "grid.width: must be at least 1, got -5"),
-    (variant(["partition"], [3, 0]), "partition[1]: must be at least 1"),
-    (variant(["partition"], [30, 1]), "partition: partition 30x1 does not fit"),
-    (variant(["objects"], {"a": 1}), "objects: expected a list"),
-    ({"objects": [], "nmax": 2, "agents": [{"id": 0}, {"id": 0}]}, "agents[1].id: duplicate id 0"),
-    ({"objects": []}, "agents: missing"),
-    ([1, 2], "scenario: expected a mapping"),
-    (None, "the file is empty"),
-    ({"objects": [], "agents": [{"id": 0}], "nmax": 3}, "nmax: 3 exceeds the team of 1 agents"),
-])
+@pytest.mark.parametrize(
+    "data,needle",
+    [
+        (variant(["colour"], "red"), "unknown key 'colour'"),
+        (variant(["objects", 0, "weight"], 3), "objects[0]: unknown key 'weight'"),
+        (variant(["objects", 0, "location"], [25, 1]), "objects[0].location: [25, 1] is off the 20x10 grid"),
+        (variant(["objects", 0, "destination"], [1, -1]), "objects[0].destination: [1, -1] is off"),
+        (variant(["objects", 0, "destination"], [1, 1]), "objects[0].destination: equals its location"),
+        (variant(["objects", 0, "required"], 3), "nmax: 3 exceeds the team of 2 agents"),
+        (variant(["objects", 0, "required"], 0), "objects[0].required: must be at least 1"),
+        (variant(["objects", 0, "required"], "two"), "objects[0].required: expected an integer"),
+        (variant(["objects", 0, "location"], [1]), "objects[0].location: expected [x, y]"),
+        (variant(["objects", 0, "id"], KeyError), "objects[0]: missing key 'id'"),
+        (variant(["grid", "width"], -5), "grid.width: must be at least 1, got -5"),
+        (variant(["partition"], [3, 0]), "partition[1]: must be at least 1"),
+        (variant(["partition"], [30, 1]), "partition: partition 30x1 does not fit"),
+        (variant(["objects"], {"a": 1}), "objects: expected a list"),
+        ({"objects": [], "nmax": 2, "agents": [{"id": 0}, {"id": 0}]}, "agents[1].id: duplicate id 0"),
+        ({"objects": []}, "agents: missing"),
+        ([1, 2], "scenario: expected a mapping"),
+        (None, "the file is empty"),
+        ({"objects": [], "agents": [{"id": 0}], "nmax": 3}, "nmax: 3 exceeds the team of 1 agents"),
+    ],
+)
 def test_bad_scenarios_name_the_field(data, needle):
     with pytest.raises(ScenarioError) as err:
         scenario_from_dict(data)

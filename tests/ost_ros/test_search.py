@@ -1,4 +1,5 @@
 """The boustrophedon sweep: hand-computed paths and full coverage of any subarea."""
+
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -44,7 +45,7 @@ def test_sweep_senses_every_cell_of_the_subarea(x0, y0, w, h):
     area = Subarea(x0, y0, w, h)
     path = route(sweep_plan(area, area.start))
     assert all(manhattan(a, b) == 1 for a, b in zip(path, path[1:]))
-    assert all(area.contains(c) for c in path)           # the sweep never leaves the subarea
+    assert all(area.contains(c) for c in path)  # the sweep never leaves the subarea
     sensed = {(x + dx, y + dy) for x, y in path for dx in (-1, 0, 1) for dy in (-1, 0, 1)}
     cells = {(x, y) for x in range(x0, x0 + w) for y in range(y0, y0 + h)}
     assert cells <= sensed

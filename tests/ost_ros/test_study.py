@@ -1,5 +1,6 @@
 """The reproduction study and the study verbs: a tiny design end to end (files, tables, claims,
 reproducible from its seed), the speedup formula, and one-line errors for bad input."""
+
 import csv
 import subprocess
 import sys
@@ -20,8 +21,10 @@ def test_design_matches_the_paper():
     assert len(tasks) == 5 * 8 * 10
     full = [t for t in tasks if t.agents in (10, 50)]
     # CCP CI=1, CI=M, HCP, the 7 other CIs, and NCP (CI=1, CI=M) as the third protocol
-    assert all(Variant("hcp") in t.variants and Variant("ncp", "M") in t.variants
-               and len(t.variants) == 12 for t in full)
+    assert all(
+        Variant("hcp") in t.variants and Variant("ncp", "M") in t.variants and len(t.variants) == 12
+        for t in full
+    )
     # The same object set for every N.
     a = scenario_of(next(t for t in tasks if (t.agents, t.objects, t.set) == (10, 20, 3)))
     b = scenario_of(next(t for t in tasks if (t.agents, t.objects, t.set) == (50, 20, 3)))
@@ -30,22 +33,21 @@ def test_design_matches_the_paper():
 
 def test_speedup_formula():
     c = {(10, 5, "v"): 1000.0, (20, 5, "v"): 400.0}
-    assert speedup(c, "v", 5, 20) == pytest.approx(1.25)   # (1000/400)·(10/20)
+    assert speedup(c, "v", 5, 20) == pytest.approx(1.25)  # (1000/400)·(10/20)
     assert speedup(c, "v", 5, 30) is None
 
 
 def test_tiny_study_end_to_end(tmp_path):
     rows, timing = run_design(TINY, workers=2, progress=False)
     rows1, _ = run_design(TINY, workers=1, progress=False)
-    assert rows == rows1                                   # reproducible, whatever the workers
+    assert rows == rows1  # reproducible, whatever the workers
     # N=10: CCP CI=1, M, HCP, CCP CI=10, NCP CI=1, M; N=20: CCP CI=1, M
     assert len(rows) == 2 * (1 + 1 + 1 + 1 + 2) + 2 * 2
     assert all(r.makespan >= r.lower_bound > 0 for r in rows)
     assert timing.workers == 2 and timing.cpu > 0 and timing.wall > 0
     report = write_all(tmp_path, TINY, rows, timing, quick=True)
     text = report.read_text()
-    for name in ("runs.csv", "summary.csv", "table1.csv", "table3.csv", "fig7.png", "fig9.png",
-                 "fig11.png"):
+    for name in ("runs.csv", "summary.csv", "table1.csv", "table3.csv", "fig7.png", "fig9.png", "fig11.png"):
         assert (tmp_path / name).stat().st_size > 0
     assert "## The paper's claims" in text and "| 10 | 1.00 / 1.00 (+0.00) |" in text
     with (tmp_path / "runs.csv").open() as f:
@@ -61,19 +63,64 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "not a directory" in err
     big = tmp_path / "big.yaml"
-    assert main(["generate", "--agents", "3", "--objects", "11", "--seed", "1", "--width", "30",
-                 "--height", "9", "--nmax", "3", "-o", str(big)]) == 0
+    assert (
+        main(
+            [
+                "generate",
+                "--agents",
+                "3",
+                "--objects",
+                "11",
+                "--seed",
+                "1",
+                "--width",
+                "30",
+                "--height",
+                "9",
+                "--nmax",
+                "3",
+                "-o",
+                str(big),
+            ]
+        )
+        == 0
+    )
     assert main(["optimal", str(big)]) == 2
     assert "too many for the exact search" in capsys.readouterr().err
 
 
 def test_optimal_verb(tmp_path):
     s = tmp_path / "s.yaml"
-    assert main(["generate", "--agents", "3", "--objects", "4", "--seed", "2", "--width", "30",
-                 "--height", "9", "--nmax", "3", "-o", str(s)]) == 0
-    r = subprocess.run([sys.executable, "-m", "ost_ros", "optimal", str(s), "--json"],
-                       capture_output=True, text=True, check=True)
+    assert (
+        main(
+            [
+                "generate",
+                "--agents",
+                "3",
+                "--objects",
+                "4",
+                "--seed",
+                "2",
+                "--width",
+                "30",
+                "--height",
+                "9",
+                "--nmax",
+                "3",
+                "-o",
+                str(s),
+            ]
+        )
+        == 0
+    )
+    r = subprocess.run(
+        [sys.executable, "-m", "ost_ros", "optimal", str(s), "--json"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     import json
+
     out = json.loads(r.stdout)
     assert out["proven"] and out["lower_bound"] <= out["optimal"] <= out["ccp"]
     assert out["ccp_gap"] == pytest.approx((out["ccp"] - out["optimal"]) / out["optimal"], abs=1e-4)
@@ -81,15 +128,50 @@ def test_optimal_verb(tmp_path):
 
 def test_sim_reports_bound_and_engines_agree(tmp_path):
     s = tmp_path / "s.yaml"
-    assert main(["generate", "--agents", "4", "--objects", "6", "--seed", "5", "--width", "40",
-                 "--height", "12", "--nmax", "4", "-o", str(s)]) == 0
+    assert (
+        main(
+            [
+                "generate",
+                "--agents",
+                "4",
+                "--objects",
+                "6",
+                "--seed",
+                "5",
+                "--width",
+                "40",
+                "--height",
+                "12",
+                "--nmax",
+                "4",
+                "-o",
+                str(s),
+            ]
+        )
+        == 0
+    )
     outs = []
     for proto in ("ccp", "hcp"):
         for engine in ("step", "event"):
-            r = subprocess.run([sys.executable, "-m", "ost_ros", "sim", str(s), "--protocol", proto,
-                                "--engine", engine, "--json"], capture_output=True, text=True,
-                               check=True)
+            r = subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "ost_ros",
+                    "sim",
+                    str(s),
+                    "--protocol",
+                    proto,
+                    "--engine",
+                    engine,
+                    "--json",
+                ],
+                capture_output=True,
+                text=True,
+                check=True,
+            )
             outs.append(r.stdout)
     import json
+
     a, b, c, d = (json.loads(x) for x in outs)
     assert a == b and c == d and a["lower_bound"] <= min(a["makespan"], c["makespan"])

@@ -1,4 +1,5 @@
 """DDS tests: every test gets its own ROS_DOMAIN_ID (lock directory) and LOCALHOST discovery."""
+
 import pytest
 
 from dds_helpers import Processes, free_domain, release_domain

@@ -1,5 +1,6 @@
 """Running real DDS processes from tests: bring-up through ost_up.sh, direct node processes with
 an explicit ROS_DOMAIN_ID, and always a teardown (SIGTERM, then SIGKILL) of what was started."""
+
 from __future__ import annotations
 
 import contextlib
@@ -68,18 +69,26 @@ def ost_up(*args: str, timeout: float = 240) -> subprocess.CompletedProcess:
     env = dict(os.environ)
     env.pop("ROS_DOMAIN_ID", None)
     env["OST_VENV"] = str(BIN.parent)
-    p = subprocess.Popen(["bash", str(UP), *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True, env=env, start_new_session=True)
+    p = subprocess.Popen(
+        ["bash", str(UP), *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        start_new_session=True,
+    )
     try:
         out, err = p.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
-        os.killpg(p.pid, signal.SIGTERM)          # ost_up.sh tears its nodes down on TERM
+        os.killpg(p.pid, signal.SIGTERM)  # ost_up.sh tears its nodes down on TERM
         try:
             out, err = p.communicate(timeout=15)
         except subprocess.TimeoutExpired:
             os.killpg(p.pid, signal.SIGKILL)
             out, err = p.communicate()
-        raise AssertionError(f"ost_up.sh {' '.join(args)} timed out after {timeout} s:\n{err[-3000:]}") from None
+        raise AssertionError(
+            f"ost_up.sh {' '.join(args)} timed out after {timeout} s:\n{err[-3000:]}"
+        ) from None
     return subprocess.CompletedProcess(p.args, p.returncode, out, err)
 
 
@@ -92,15 +101,21 @@ def checkpoint_step(path) -> int:
         return -1
 
 
-def kill_mid_run(run_dir: Path, victim: str, at_step: int, *args: str,
-                 timeout: float = 180) -> subprocess.CompletedProcess:
+def kill_mid_run(
+    run_dir: Path, victim: str, at_step: int, *args: str, timeout: float = 180
+) -> subprocess.CompletedProcess:
     """Run ost_up.sh with ``args`` and SIGKILL the process ``victim`` (``world``, ``agent_3``,
     ...) once the world's checkpoint has reached ``at_step``; the completed ost_up.sh process."""
     env = dict(os.environ, OST_VENV=str(BIN.parent))
     env.pop("ROS_DOMAIN_ID", None)
-    up = subprocess.Popen(["bash", str(UP), *args, "--run-dir", str(run_dir)],
-                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-                          start_new_session=True)
+    up = subprocess.Popen(
+        ["bash", str(UP), *args, "--run-dir", str(run_dir)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        start_new_session=True,
+    )
     try:
         deadline = time.monotonic() + 120
         while checkpoint_step(run_dir / "world.checkpoint") < at_step:
@@ -125,10 +140,14 @@ class Processes:
         self.shm_before = set(os.listdir("/dev/shm"))
 
     def start(self, name: str, exe: str, *ros_args: str) -> subprocess.Popen:
-        log = open(self.run_dir / f"{name}.log", "w")   # noqa: SIM115 - the process writes it
-        p = subprocess.Popen([str(BIN / exe), "--ros-args", *ros_args], stdout=log,
-                             stderr=subprocess.STDOUT, env=ros_env(self.domain),
-                             start_new_session=True)
+        log = open(self.run_dir / f"{name}.log", "w")  # noqa: SIM115 - the process writes it
+        p = subprocess.Popen(
+            [str(BIN / exe), "--ros-args", *ros_args],
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            env=ros_env(self.domain),
+            start_new_session=True,
+        )
         self.procs[name] = p
         return p
 

@@ -1,4 +1,5 @@
 """The agent node's name comes from ``agent_id`` in its ROS arguments (``-p`` or a params file)."""
+
 from agent_node.agent_node import agent_id_from_args
 
 
@@ -14,7 +15,7 @@ def test_agent_id_from_p_and_params_file(tmp_path):
 
 def test_agent_id_absent_or_bad_gives_none(tmp_path):
     assert agent_id_from_args(["agent_node"]) is None
-    assert agent_id_from_args(["x", "-p", "agent_id:=3"]) is None          # not a ROS argument
+    assert agent_id_from_args(["x", "-p", "agent_id:=3"]) is None  # not a ROS argument
     assert agent_id_from_args(["x", "--ros-args", "-p", "agent_id:=abc"]) is None
     assert agent_id_from_args(["x", "--ros-args", "-p", "agent_id:=-1"]) is None
     assert agent_id_from_args(["x", "--ros-args", "--params-file", str(tmp_path / "none.yaml")]) is None

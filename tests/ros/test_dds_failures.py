@@ -3,6 +3,7 @@ step, or from outside at an arbitrary moment) is detected by its lost liveliness
 in the step the world was at, and the survivors re-coordinate — the result is exactly the
 in-process run with that failure (``ost sim --fail AGENT:STEP``), for CCP and HCP. Too few
 survivors, or a protocol that does not recover (ncp), end the run with a result that says why."""
+
 import subprocess
 
 from dds_helpers import kill_mid_run, ost_up, result_json
@@ -29,8 +30,9 @@ def in_process(scenario, got, protocol="ccp"):
 
 def test_agent_killing_itself_at_a_step_equals_ost_sim_with_that_failure(tmp_path):
     scenario, path = scenario_file(tmp_path)
-    run = ost_up("--scenario", str(path), "--json", "--kill-agent", "2:40",
-                 "--run-dir", str(tmp_path / "run"))
+    run = ost_up(
+        "--scenario", str(path), "--json", "--kill-agent", "2:40", "--run-dir", str(tmp_path / "run")
+    )
     assert run.returncode == 0, run.stderr
     got = result_json(run.stdout)
     assert [f["agent"] for f in got["failures"]] == [2] and got["failures"][0]["step"] >= 40
@@ -46,8 +48,9 @@ def test_agent_killed_from_outside_at_any_moment(tmp_path):
     scenario, path = scenario_file(tmp_path, n=6, m=10, seed=3, grid=Grid(36, 18))
     run_dir = tmp_path / "run"
     # skipping off and a short lease: the kill lands mid-run, wherever the lockstep is
-    up = kill_mid_run(run_dir, "agent_4", 30, "--scenario", str(path), "--json", "--no-skip",
-                      "--failure-timeout", "1")
+    up = kill_mid_run(
+        run_dir, "agent_4", 30, "--scenario", str(path), "--json", "--no-skip", "--failure-timeout", "1"
+    )
     out, err = up.stdout, up.stderr
     assert up.returncode == 0, err
     got = result_json(out)
@@ -60,8 +63,7 @@ def test_agent_killed_from_outside_at_any_moment(tmp_path):
 
 def test_too_few_survivors_end_with_what_could_not_be_done(tmp_path):
     scenario, path = scenario_file(tmp_path, nmax=4)
-    run = ost_up("--scenario", str(path), "--json", "--kill-agent", "1:0",
-                 "--run-dir", str(tmp_path / "run"))
+    run = ost_up("--scenario", str(path), "--json", "--kill-agent", "1:0", "--run-dir", str(tmp_path / "run"))
     got = result_json(run.stdout)
     assert got == in_process(scenario, got)
     assert not got["completed"] and "cannot be delivered" in got["error"]
@@ -70,8 +72,17 @@ def test_too_few_survivors_end_with_what_could_not_be_done(tmp_path):
 
 def test_hcp_recovers_from_a_failed_agent_as_in_process(tmp_path):
     scenario, path = scenario_file(tmp_path)
-    run = ost_up("--scenario", str(path), "--json", "--protocol", "hcp", "--kill-agent", "3:10",
-                 "--run-dir", str(tmp_path / "run"))
+    run = ost_up(
+        "--scenario",
+        str(path),
+        "--json",
+        "--protocol",
+        "hcp",
+        "--kill-agent",
+        "3:10",
+        "--run-dir",
+        str(tmp_path / "run"),
+    )
     assert run.returncode == 0, run.stderr
     got = result_json(run.stdout)
     assert got["completed"] and got["failures"][0]["agent"] == 3
@@ -80,8 +91,17 @@ def test_hcp_recovers_from_a_failed_agent_as_in_process(tmp_path):
 
 def test_ncp_run_with_a_failed_agent_ends_with_the_reason(tmp_path):
     _, path = scenario_file(tmp_path)
-    run = ost_up("--scenario", str(path), "--json", "--protocol", "ncp", "--kill-agent", "3:10",
-                 "--run-dir", str(tmp_path / "run"))
+    run = ost_up(
+        "--scenario",
+        str(path),
+        "--json",
+        "--protocol",
+        "ncp",
+        "--kill-agent",
+        "3:10",
+        "--run-dir",
+        str(tmp_path / "run"),
+    )
     got = result_json(run.stdout)
     assert not got["completed"]
     assert "does not recover from failures" in got["error"]

@@ -3,6 +3,7 @@ sim_hosts.sh): the world and the agents on K = 3 simulated hosts with their own 
 the single-host run (= ``ost sim``) — with default multicast discovery, with multicast blocked
 and ROS_STATIC_PEERS or a Fast DDS discovery server instead, and with 20 % of every packet each
 host sends dropped (nftables ``numgen``)."""
+
 import os
 import shutil
 import subprocess
@@ -16,8 +17,10 @@ from ost_ros.scenario import dump_scenario, generate_scenario
 
 ROOT = os.geteuid() == 0
 NFT = shutil.which("nft") is not None
-pytestmark = [pytest.mark.root,
-              pytest.mark.skipif(not ROOT, reason="simulated hosts need root (network namespaces)")]
+pytestmark = [
+    pytest.mark.root,
+    pytest.mark.skipif(not ROOT, reason="simulated hosts need root (network namespaces)"),
+]
 
 
 def run_on_hosts(tmp_path, *args, protocol="ccp"):
@@ -25,8 +28,19 @@ def run_on_hosts(tmp_path, *args, protocol="ccp"):
     path = tmp_path / "s.yaml"
     path.write_text(dump_scenario(scenario))
     expected = reference(scenario, protocol, CoordinationPolicy(ci=1))
-    run = ost_up("--scenario", str(path), "--json", "--protocol", protocol, "--hosts", "3", *args,
-                 "--run-dir", str(tmp_path / "run"), timeout=300)
+    run = ost_up(
+        "--scenario",
+        str(path),
+        "--json",
+        "--protocol",
+        protocol,
+        "--hosts",
+        "3",
+        *args,
+        "--run-dir",
+        str(tmp_path / "run"),
+        timeout=300,
+    )
     assert run.returncode == 0, run.stderr
     assert "on 3 simulated hosts" in run.stderr
     return result_json(run.stdout), expected, run.stderr
@@ -62,7 +76,11 @@ def test_twenty_percent_loss_on_every_host(tmp_path, protocol):
 
 def test_sim_hosts_bad_arguments_are_one_line():
     script = REPO / "bringup_scripts" / "sim_hosts.sh"
-    for args, text in [(["up", "x"], "up needs K"), (["up", "bad-name!", "2"], "NAME"),
-                       (["up", "x", "0"], "K: 1..250"), (["sideways", "x"], "unknown command")]:
+    for args, text in [
+        (["up", "x"], "up needs K"),
+        (["up", "bad-name!", "2"], "NAME"),
+        (["up", "x", "0"], "K: 1..250"),
+        (["sideways", "x"], "unknown command"),
+    ]:
         r = subprocess.run(["bash", str(script), *args], capture_output=True, text=True)
         assert r.returncode == 2 and text in r.stderr and len(r.stderr.strip().splitlines()) == 1

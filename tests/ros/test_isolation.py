@@ -3,6 +3,7 @@ publisher on a run's own domain sending well-formed but false messages — anoth
 messages and actions claiming to be agent 1, with a selection that contradicts the algorithm —
 is detected (warned, naming the topic and the claimed sender) and ignored: the run still equals
 ``ost sim``."""
+
 import subprocess
 import sys
 import threading
@@ -53,8 +54,15 @@ def test_two_runs_at_once_do_not_interfere(tmp_path):
     out = {}
 
     def go(name):
-        out[name] = ost_up("--scenario", str(runs[name][0]), "--json", "--no-skip",
-                           "--run-dir", str(tmp_path / f"run_{name}"))
+        out[name] = ost_up(
+            "--scenario",
+            str(runs[name][0]),
+            "--json",
+            "--no-skip",
+            "--run-dir",
+            str(tmp_path / f"run_{name}"),
+        )
+
     threads = [threading.Thread(target=go, args=(n,)) for n in runs]
     for th in threads:
         th.start()
@@ -69,14 +77,26 @@ def test_two_runs_at_once_do_not_interfere(tmp_path):
 
 
 def test_stray_publisher_is_detected_and_ignored(tmp_path, domain):
-    path, expected = scenario_file(tmp_path, "s", 3, Grid(60, 24))   # a run of several seconds
+    path, expected = scenario_file(tmp_path, "s", 3, Grid(60, 24))  # a run of several seconds
     result = {}
-    th = threading.Thread(target=lambda: result.update(run=ost_up(
-        "--scenario", str(path), "--json", "--no-skip", "--domain-id", str(domain),
-        "--run-dir", str(tmp_path / "run"))))
+    th = threading.Thread(
+        target=lambda: result.update(
+            run=ost_up(
+                "--scenario",
+                str(path),
+                "--json",
+                "--no-skip",
+                "--domain-id",
+                str(domain),
+                "--run-dir",
+                str(tmp_path / "run"),
+            )
+        )
+    )
     th.start()
-    stray = subprocess.run([sys.executable, "-c", STRAY], env=ros_env(domain),
-                           capture_output=True, text=True, timeout=90)
+    stray = subprocess.run(
+        [sys.executable, "-c", STRAY], env=ros_env(domain), capture_output=True, text=True, timeout=90
+    )
     th.join()
     assert stray.returncode == 0 and "sent" in stray.stdout, stray.stderr
     run = result["run"]
@@ -84,6 +104,9 @@ def test_stray_publisher_is_detected_and_ignored(tmp_path, domain):
     assert result_json(run.stdout) == expected
     logs = {p.name: p.read_text() for p in (tmp_path / "run").glob("*.log")}
     assert "dropped message on /ost/acted from agent 1: action of run 'stray'" in logs["world.log"]
-    assert any("from agent 1: step_messages of run 'stray'" in text
-               for name, text in logs.items() if name.startswith("agent_"))
+    assert any(
+        "from agent 1: step_messages of run 'stray'" in text
+        for name, text in logs.items()
+        if name.startswith("agent_")
+    )
     assert not any("Traceback" in text for text in logs.values())

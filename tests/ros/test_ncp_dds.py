@@ -1,6 +1,7 @@
 """NCP over DDS (real rclpy processes): negotiation moves travel on /ost/negotiation between the
 agent processes and the run equals ``ost sim --protocol ncp``; a negotiator that goes silent is
 timed out and the others conclude without it — the same outcome as in-process."""
+
 import json
 
 import pytest
@@ -22,8 +23,17 @@ def test_ncp_over_dds_equals_ost_sim(tmp_path, ci):
     path = tmp_path / "scenario.yaml"
     path.write_text(dump_scenario(scenario))
     expected = reference(scenario, "ncp", CoordinationPolicy(ci=ci))
-    run = ost_up("--scenario", str(path), "--protocol", "ncp", "--ci", str(ci), "--json",
-                 "--run-dir", str(tmp_path / "run"))
+    run = ost_up(
+        "--scenario",
+        str(path),
+        "--protocol",
+        "ncp",
+        "--ci",
+        str(ci),
+        "--json",
+        "--run-dir",
+        str(tmp_path / "run"),
+    )
     assert run.returncode == 0, run.stderr
     assert expected["completed"] and expected["agreement"] and expected["protocol"] == "ncp"
     assert result_json(run.stdout) == expected
@@ -56,8 +66,19 @@ def test_silent_negotiator_over_dds(tmp_path):
     expected = in_process_with_mute(scenario, policy, silent=1, step=0)
     assert expected["completed"] and any("agent(s) 1 silent" in w for w in expected["warnings"])
     assert all(1 not in o["agents"] for o in expected["objects"])
-    run = ost_up("--scenario", str(path), "--protocol", "ncp", "--ci", "8", "--json",
-                 "--mute-negotiation", "1:0", "--run-dir", str(tmp_path / "run"))
+    run = ost_up(
+        "--scenario",
+        str(path),
+        "--protocol",
+        "ncp",
+        "--ci",
+        "8",
+        "--json",
+        "--mute-negotiation",
+        "1:0",
+        "--run-dir",
+        str(tmp_path / "run"),
+    )
     assert run.returncode == 0, run.stderr
     assert result_json(run.stdout) == expected
 
@@ -67,6 +88,7 @@ def test_heterogeneous_team_over_dds(tmp_path):
     import dataclasses
 
     from ost_ros.scenario import build_scenario
+
     base = generate_scenario(4, 6, 5, Grid(30, 12), 3)
     agents = [dataclasses.replace(a, period=k) for a, k in zip(base.agents, (1, 2, 3, 1))]
     scenario = build_scenario(base.grid, base.objects, agents=agents, nmax=3)
@@ -74,7 +96,16 @@ def test_heterogeneous_team_over_dds(tmp_path):
     path.write_text(dump_scenario(scenario))
     for protocol in ("ccp", "ncp"):
         expected = reference(scenario, protocol, CoordinationPolicy(ci=2))
-        run = ost_up("--scenario", str(path), "--protocol", protocol, "--ci", "2", "--json",
-                     "--run-dir", str(tmp_path / f"run_{protocol}"))
+        run = ost_up(
+            "--scenario",
+            str(path),
+            "--protocol",
+            protocol,
+            "--ci",
+            "2",
+            "--json",
+            "--run-dir",
+            str(tmp_path / f"run_{protocol}"),
+        )
         assert run.returncode == 0, run.stderr
         assert result_json(run.stdout) == expected

@@ -1,6 +1,7 @@
 """The lockstep protocol without DDS: world and agent runtimes wired directly, every message
 through the codec. Skipping on and off give exactly ``simulate``'s result (no transport here;
 the DDS tests run the same runtimes in real processes)."""
+
 import dataclasses
 
 import pytest
@@ -30,7 +31,7 @@ def test_skipping_on_and_off_equal_simulate(protocol, n, m, seed, w, h, ci):
     assert skipping.to_dict() == expected
     assert w0.skipped == 0 and w0.round_trips == expected["steps"]
     assert w1.round_trips + w1.skipped == expected["steps"]
-    if protocol == "ccp":   # CCP runs are mostly quiet: far fewer round trips
+    if protocol == "ccp":  # CCP runs are mostly quiet: far fewer round trips
         assert w1.round_trips * 3 < w0.round_trips
 
 
@@ -48,7 +49,7 @@ def test_out_of_turn_messages_are_refused():
         rt.accept_batch(StepMessages(7, 0, ()))
     (acted,) = rt.progress()
     world.accept_acted(acted)
-    world.accept_acted(acted)              # the same answer again (a resend): ignored
+    world.accept_acted(acted)  # the same answer again (a resend): ignored
     assert world.acted_agents() == (0,)
     changed = dataclasses.replace(acted, sent=acted.sent + 1)
     with pytest.raises(ProtocolViolation, match="second, different action"):
@@ -101,8 +102,12 @@ def run_lossy(scenario, protocol, policy, lose):
         if out:
             continue
         # Stalled: what the nodes' timers do after RESEND_S.
-        send(nxt, world.missing_reports if isinstance(nxt, RunEnd)
-             else [i for i in ids if i not in world.acted_agents()])
+        send(
+            nxt,
+            world.missing_reports
+            if isinstance(nxt, RunEnd)
+            else [i for i in ids if i not in world.acted_agents()],
+        )
         for r in rts.values():
             held = r.held()
             if held is not None and held[1]:
@@ -135,7 +140,7 @@ def test_ncp_moves_travel_as_their_own_part():
     scenario = generate_scenario(2, 2, 1, Grid(12, 6), 2)
     ids = (0, 1)
     rt = AgentRuntime(make_agents(scenario, "ncp", CoordinationPolicy())[0], ids)
-    rt.last, rt.run = 5, ""      # as if its first tick (of run "") had come
+    rt.last, rt.run = 5, ""  # as if its first tick (of run "") had come
     rt.accept_batch(wire(parts[1]))
     assert not rt._ready((1,))
     rt.accept_batch(wire(parts[0]))
@@ -147,6 +152,7 @@ def test_ncp_moves_travel_as_their_own_part():
 @pytest.mark.parametrize("protocol", ["ccp", "ncp"])
 def test_heterogeneous_team_equals_simulate(protocol):
     from ost_ros.scenario import build_scenario
+
     base = generate_scenario(4, 8, 3, Grid(30, 12), 3)
     agents = [dataclasses.replace(a, period=k) for a, k in zip(base.agents, (1, 2, 3, 1))]
     scenario = build_scenario(base.grid, base.objects, agents=agents, nmax=3)
@@ -164,7 +170,7 @@ def test_messages_of_another_run_are_dropped():
     world = WorldRuntime(scenario, run="r1")
     rt = AgentRuntime(agents[0], ids)
     stray = StepMessages(1, 0, (), run="other")
-    rt.accept_batch(stray)                      # before the first tick: held, then judged
+    rt.accept_batch(stray)  # before the first tick: held, then judged
     ticks = world.start()
     rt.accept_tick(ticks[0])
     assert rt.run == "r1" and rt.dropped and "run 'other'" in rt.dropped[0][1]

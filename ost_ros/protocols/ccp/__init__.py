@@ -1,5 +1,6 @@
 """CCP, the cost-balanced cooperation protocol (Lin & Hsu, §3–4): every agent runs Algorithm
 Coordination on the same shared knowledge and so holds the same global schedule."""
+
 from __future__ import annotations
 
 from typing import Any
@@ -12,7 +13,9 @@ from ost_ros.protocols.shared.agent import STATES, ScheduleAgent
 from ost_ros.team import TeamInfo
 
 
-def make_agent(agent_id: int, team: TeamInfo, policy: CoordinationPolicy, settings: Any = None) -> ScheduleAgent:
+def make_agent(
+    agent_id: int, team: TeamInfo, policy: CoordinationPolicy, settings: Any = None
+) -> ScheduleAgent:
     return ScheduleAgent(agent_id, team, CcpComm(agent_id, team, policy), "ccp")
 
 
@@ -27,7 +30,13 @@ SPEC = ProtocolSpec(
     make_agent=make_agent,
     messages=(ObjectFound, SearchDone, Selection, Status, ScheduleUpdate),
     states=STATES,
-    capabilities=Capabilities(recovers_failures=True, organisations=ORGANISATIONS, own_sweeps=True,
-                              heterogeneous=True, triggers=True, team_knowledge=True),
+    capabilities=Capabilities(
+        recovers_failures=True,
+        organisations=ORGANISATIONS,
+        own_sweeps=True,
+        heterogeneous=True,
+        triggers=True,
+        team_knowledge=True,
+    ),
     team_comm=team_comm,
 )

@@ -17,6 +17,7 @@ every agent sets the same objects aside, but only the lowest-id agent runs Algor
 Coordination — for schedules that start a step later — and broadcasts the result
 (:class:`ScheduleUpdate`); everyone adopts it the next step (the final one closes the comm).
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -48,7 +49,7 @@ _SELECTION_MEMORY = 8
 class CommState(str, Enum):
     LISTENING = "LISTENING"
     COORDINATING = "COORDINATING"
-    RECOVERING = "RECOVERING"     # a robot failed: waiting for every survivor's Status
+    RECOVERING = "RECOVERING"  # a robot failed: waiting for every survivor's Status
     CLOSED = "CLOSED"
 
 
@@ -70,7 +71,7 @@ class CcpComm:
     statuses: dict[int, Status] = field(default_factory=dict)
     impossible: set[int] = field(default_factory=set)
     orphans: list[tuple[Cell, ...]] = field(default_factory=list)
-    reset: bool = False            # the agent drops its not-started tasks (set on a failure)
+    reset: bool = False  # the agent drops its not-started tasks (set on a failure)
     # Coordinator organisation: objects set aside for the coordinator's next update, and
     # whether that update is the final one.
     awaiting: set[int] = field(default_factory=set)
@@ -94,7 +95,7 @@ class CcpComm:
             self._take(t, msg)
         if self.recovering is not None:
             if self.recovering == t:
-                return            # statuses come next step
+                return  # statuses come next step
             self._recover(t)
         if self.state is CommState.CLOSED or self.closing:
             return
@@ -103,8 +104,9 @@ class CcpComm:
             if not self.closing:
                 self.state = CommState.CLOSED
                 k.predicted_makespan = k.predict_makespan(t, self.alive)
-        elif self.policy.due(t, len(k.unscheduled), self.team.searched_fraction(t - 1),
-                             self.team.searched_fraction(t)):
+        elif self.policy.due(
+            t, len(k.unscheduled), self.team.searched_fraction(t - 1), self.team.searched_fraction(t)
+        ):
             self._coordinate(t)
 
     def _take(self, t: int, msg: AgentMessage) -> None:
@@ -140,15 +142,17 @@ class CcpComm:
             return
         mine = self._selections.get(msg.coordination)
         if mine is None or msg.sender not in mine[0]:
-            self.knowledge.warnings.append(f"agent {msg.sender}: selection for unknown coordination "
-                                           f"{msg.coordination}; ignored")
+            self.knowledge.warnings.append(
+                f"agent {msg.sender}: selection for unknown coordination {msg.coordination}; ignored"
+            )
             return
         ids, selections = mine
         expected = tuple(int(x) for x in selections[:, ids.index(msg.sender)])
         if tuple(msg.objects) != expected:
             self.knowledge.warnings.append(
                 f"agent {msg.sender}: selection {list(msg.objects)} in coordination "
-                f"{msg.coordination} contradicts the algorithm ({list(expected)}); ignored")
+                f"{msg.coordination} contradicts the algorithm ({list(expected)}); ignored"
+            )
 
     # ------------------------------------------------------------------ coordination
 
@@ -160,16 +164,24 @@ class CcpComm:
     @property
     def all_searched(self) -> bool:
         """Every survivor has done all its search work and no sweep is left without an owner."""
-        return (self.recovering is None and not self.orphans
-                and all(j in self.knowledge.searched for j in self.alive))
+        return (
+            self.recovering is None
+            and not self.orphans
+            and all(j in self.knowledge.searched for j in self.alive)
+        )
 
     def _schedule_batch(self, t: int, batch: list[int]):
         """Algorithm Coordination of ``batch`` among the survivors, for steps after ``t``."""
         cost, loc = self.knowledge.costs(t)
         idx = [self.team.index(j) for j in self.alive]
         periods = self.team.speed_periods
-        return coordinate(self.alive, cost[idx], loc[idx], [self.knowledge.objects[i] for i in batch],
-                          None if periods is None else [periods[k] for k in idx])
+        return coordinate(
+            self.alive,
+            cost[idx],
+            loc[idx],
+            [self.knowledge.objects[i] for i in batch],
+            None if periods is None else [periods[k] for k in idx],
+        )
 
     def _coordinate(self, t: int, final: bool = False) -> None:
         k = self.knowledge
@@ -218,13 +230,17 @@ class CcpComm:
     def _adopt(self, t: int, msg: ScheduleUpdate) -> None:
         k = self.knowledge
         if msg.sender != self.coordinator or msg.coordination != k.coordinations + 1:
-            k.warnings.append(f"agent {msg.sender}: schedule update {msg.coordination} is not the "
-                              f"coordinator's next one; ignored")
+            k.warnings.append(
+                f"agent {msg.sender}: schedule update {msg.coordination} is not the "
+                f"coordinator's next one; ignored"
+            )
             return
         for e in msg.assignments:
             if e.object not in self.awaiting:
-                k.warnings.append(f"agent {msg.sender}: schedule update {msg.coordination} has "
-                                  f"object {e.object}, which was not set aside; ignored")
+                k.warnings.append(
+                    f"agent {msg.sender}: schedule update {msg.coordination} has "
+                    f"object {e.object}, which was not set aside; ignored"
+                )
                 return
         k.assign([Assignment(e.object, tuple(e.agents), e.start, e.finish) for e in msg.assignments])
         self.awaiting.difference_update(e.object for e in msg.assignments)
@@ -255,7 +271,7 @@ class CcpComm:
         period = self.team.periods[self.team.index(agent)] if self.team.periods else 1
         self.lost[agent] = t
         k.searched.discard(agent)
-        if self.owed[agent] > 0:     # its unsensed cells: for a survivor to sweep
+        if self.owed[agent] > 0:  # its unsensed cells: for a survivor to sweep
             for sw in self._sweeps_of(agent):
                 rest = remaining_sweep(sw, t, period)
                 if rest:
@@ -267,7 +283,7 @@ class CcpComm:
         k.unscheduled |= self.awaiting
         self.awaiting.clear()
         self.closing = False
-        k.predicted_makespan = None   # made with the dead agent; predicted anew at the close
+        k.predicted_makespan = None  # made with the dead agent; predicted anew at the close
         self.recovering = t
         self.statuses.clear()
         self.reset = True
@@ -278,10 +294,10 @@ class CcpComm:
         back into the pool (an object carried part of the way: from where it was dropped)."""
         k = self.knowledge
         if isinstance(a, Sweep):
-            if a.agent == agent:         # the dead agent's: orphaned in _lose
+            if a.agent == agent:  # the dead agent's: orphaned in _lose
                 return False
-            if a.start > t:              # a survivor's take-over not begun: back into the pool
-                self.orphans.append(a.path[a.walk:])
+            if a.start > t:  # a survivor's take-over not begun: back into the pool
+                self.orphans.append(a.path[a.walk :])
                 self._sweeps_of(a.agent).remove(a)
                 self.owed[a.agent] -= 1
                 if self.owed[a.agent] == 0:
@@ -289,15 +305,18 @@ class CcpComm:
                 return False
             return True
         if agent in a.agents and a.finish > t:
-            if a.start < t:              # carried since a.start, held from step t on
+            if a.start < t:  # carried since a.start, held from step t on
                 o = k.objects[a.object]
-                period = group_period([self.team.periods[self.team.index(j)] for j in a.agents]) \
-                    if self.team.periods else 1
+                period = (
+                    group_period([self.team.periods[self.team.index(j)] for j in a.agents])
+                    if self.team.periods
+                    else 1
+                )
                 k.drops[a.object] = drop_cell(o.location, o.destination, a.start, t, period)
                 k.objects[a.object] = replace(o, location=k.drops[a.object])
             k.unscheduled.add(a.object)
             return False
-        if a.start > t:                  # not under way: re-planned with everything else
+        if a.start > t:  # not under way: re-planned with everything else
             k.unscheduled.add(a.object)
             return False
         return True
@@ -321,9 +340,11 @@ class CcpComm:
         k = self.knowledge
         survivors = self.alive
         missing = [j for j in survivors if j not in self.statuses]
-        if missing:   # cannot happen in lockstep; say so rather than plan on a guess
-            k.warnings.append(f"recovery in step {t}: no status from agents {missing}; "
-                              "planning with what they were last known to do")
+        if missing:  # cannot happen in lockstep; say so rather than plan on a guess
+            k.warnings.append(
+                f"recovery in step {t}: no status from agents {missing}; "
+                "planning with what they were last known to do"
+            )
         for j, st in self.statuses.items():
             i = self.team.index(j)
             k.free_at[i] = st.free_at

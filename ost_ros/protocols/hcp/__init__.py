@@ -1,5 +1,6 @@
 """HCP, the help-based cooperation protocol (Lin & Hsu §2.3, the paper's baseline): each robot owns
 the objects of its subarea and asks for help with those that need more than one robot."""
+
 from __future__ import annotations
 
 from typing import Any

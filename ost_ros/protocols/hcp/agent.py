@@ -34,6 +34,7 @@ says they fell (``AgentLost.dropped``).
 The agent is a :class:`~ost_ros.protocols.base.ProtocolAgent`; its knowledge of requests and
 offers is :class:`~ost_ros.protocols.hcp.comm.HcpComm`.
 """
+
 from __future__ import annotations
 
 import heapq
@@ -65,26 +66,26 @@ from ost_ros.protocols.plans import NO_PLAN, Plan, Segment
 from ost_ros.search import SearchModule, route, sweep_waypoints
 from ost_ros.team import TeamInfo
 
-Action3 = tuple[ActionKind, Cell, int]   # what a motion state returns: kind, direction, object
+Action3 = tuple[ActionKind, Cell, int]  # what a motion state returns: kind, direction, object
 WAIT: Action3 = (ActionKind.WAIT, (0, 0), -1)
 
 
 class HcpState(str, Enum):
-    SEARCHING = SEARCHING_STATE   # sweeping its subarea (sensing own objects)
-    FETCHING = "FETCHING"      # going to (or standing at) an own object
+    SEARCHING = SEARCHING_STATE  # sweeping its subarea (sensing own objects)
+    FETCHING = "FETCHING"  # going to (or standing at) an own object
     REQUESTING = "REQUESTING"  # at an own object, help requested, not yet staffed
-    HELPING = "HELPING"        # going to a partner's object
-    WAITING = "WAITING"        # at the object, group chosen, holding until all have arrived
-    MOVING = "MOVING"          # carrying
-    RESUMING = "RESUMING"      # walking back to where the sweep was left
-    DECISION = "DECISION"      # own work done or paused: available, waiting
-    RETURNING = "RETURNING"    # every part is done: going back to base
+    HELPING = "HELPING"  # going to a partner's object
+    WAITING = "WAITING"  # at the object, group chosen, holding until all have arrived
+    MOVING = "MOVING"  # carrying
+    RESUMING = "RESUMING"  # walking back to where the sweep was left
+    DECISION = "DECISION"  # own work done or paused: available, waiting
+    RETURNING = "RETURNING"  # every part is done: going back to base
     FINISH = FINISH_STATE
 
 
-
-_AVAILABLE = frozenset((HcpState.SEARCHING, HcpState.RESUMING, HcpState.DECISION,
-                        HcpState.FETCHING, HcpState.REQUESTING))
+_AVAILABLE = frozenset(
+    (HcpState.SEARCHING, HcpState.RESUMING, HcpState.DECISION, HcpState.FETCHING, HcpState.REQUESTING)
+)
 
 
 class HcpAgent:
@@ -104,17 +105,17 @@ class HcpAgent:
         self.search = SearchModule.for_area(self.area, self.base)
         self.sweep_done = False
         self.comm = HcpComm(agent_id, team)
-        self.own: list[int] = []              # heap of found, not yet handled own object ids
+        self.own: list[int] = []  # heap of found, not yet handled own object ids
         self.current: ObjectInfo | None = None
-        self.helping = False                  # current object is a partner's
-        self.offering: int | None = None      # object of my standing offer
+        self.helping = False  # current object is a partner's
+        self.offering: int | None = None  # object of my standing offer
         self.part_done_sent = False
         self._outbox: list[AgentMessage] = []
         self._obs: Observation | None = None
-        self.areas = [self.area]              # subareas whose objects it owns (+ inherited)
-        self.sweeps_left: list[list[Cell]] = []   # inherited subareas still to sweep
-        self.claimed: set[int] = set()        # objects it has taken as its own
-        self.unsure: set[int] = set()         # inherited objects that may be delivered already
+        self.areas = [self.area]  # subareas whose objects it owns (+ inherited)
+        self.sweeps_left: list[list[Cell]] = []  # inherited subareas still to sweep
+        self.claimed: set[int] = set()  # objects it has taken as its own
+        self.unsure: set[int] = set()  # inherited objects that may be delivered already
 
     # ------------------------------------------------------------------ step, part 1: act
 
@@ -131,7 +132,7 @@ class HcpAgent:
             if any(a.contains(o.location) for a in self.areas) and o.id not in self.claimed:
                 self._claim(self.comm.fallen.get(o.id, o), obs.t)
         if self.search.at_end(self.position):
-            if self.sweeps_left:   # on to an inherited subarea (walking there, sensing)
+            if self.sweeps_left:  # on to an inherited subarea (walking there, sensing)
                 self.search = SearchModule(route([self.position] + self.sweeps_left.pop(0)))
             else:
                 self.sweep_done = True
@@ -196,7 +197,7 @@ class HcpAgent:
         if self.offering is not None:
             return WAIT
         while self.own and self.comm.objects[self.own[0]].required > len(self.comm.alive):
-            heapq.heappop(self.own)           # too few robots survive to move it
+            heapq.heappop(self.own)  # too few robots survive to move it
         if self.own:
             self.current = self.comm.objects[heapq.heappop(self.own)]
             self.helping = False
@@ -208,7 +209,7 @@ class HcpAgent:
         if not self.part_done_sent:
             self.part_done_sent = True
             self._outbox.append(SearchDone(self.id, self.t))
-            self.comm.done_parts.add(self.id)   # my own part needs no round trip
+            self.comm.done_parts.add(self.id)  # my own part needs no round trip
         if self.comm.closed:
             self.state = HcpState.RETURNING
             return None
@@ -222,7 +223,7 @@ class HcpAgent:
         if self.position == target:
             self.state = HcpState.SEARCHING
             assert self._obs is not None
-            self._sense(self._obs)   # back on the sweep: sensing (and its end) resume
+            self._sense(self._obs)  # back on the sweep: sensing (and its end) resume
             return None
         return ActionKind.MOVE, step_toward(self.position, target), -1
 
@@ -231,10 +232,10 @@ class HcpAgent:
         target = self.current.location
         if self.position != target:
             return ActionKind.MOVE, step_toward(self.position, target), -1
-        if self.current.id in self.unsure:   # inherited: is it still here?
+        if self.current.id in self.unsure:  # inherited: is it still here?
             self.unsure.discard(self.current.id)
             if all(o.id != self.current.id for o in self._obs.sensed):
-                self.current = None          # delivered before its owner died
+                self.current = None  # delivered before its owner died
                 self.state = HcpState.DECISION
                 return None
         if self.offering is not None:
@@ -259,7 +260,7 @@ class HcpAgent:
     def _carrying(self) -> Action3 | None:
         obj = self.current
         assert obj is not None
-        if self.position == obj.destination:   # delivered on arrival
+        if self.position == obj.destination:  # delivered on arrival
             self.current = None
             self.helping = False
             self.state = HcpState.DECISION
@@ -278,9 +279,15 @@ class HcpAgent:
         return WAIT
 
     _STEP: ClassVar[dict[HcpState, Callable[[HcpAgent], Action3 | None]]] = {
-        HcpState.SEARCHING: _searching, HcpState.DECISION: _deciding, HcpState.RESUMING: _resuming,
-        HcpState.FETCHING: _fetching, HcpState.REQUESTING: _requesting, HcpState.HELPING: _helping,
-        HcpState.WAITING: _carrying, HcpState.MOVING: _carrying, HcpState.RETURNING: _returning,
+        HcpState.SEARCHING: _searching,
+        HcpState.DECISION: _deciding,
+        HcpState.RESUMING: _resuming,
+        HcpState.FETCHING: _fetching,
+        HcpState.REQUESTING: _requesting,
+        HcpState.HELPING: _helping,
+        HcpState.WAITING: _carrying,
+        HcpState.MOVING: _carrying,
+        HcpState.RETURNING: _returning,
         HcpState.FINISH: _finished,
     }
 
@@ -301,11 +308,15 @@ class HcpAgent:
                 if heir == self.id:
                     self._inherit(m, parts, t)
         if self.state in (HcpState.RETURNING, HcpState.FINISH) and not self.comm.closed:
-            self.state = HcpState.DECISION   # a failure left work: available again
-        if (self.comm.lost and self.current is not None and not self.helping
-                and self.state in (HcpState.FETCHING, HcpState.REQUESTING)
-                and self.current.required > len(self.comm.alive)):
-            if self.state is HcpState.REQUESTING:   # nobody left to come: withdraw, give it up
+            self.state = HcpState.DECISION  # a failure left work: available again
+        if (
+            self.comm.lost
+            and self.current is not None
+            and not self.helping
+            and self.state in (HcpState.FETCHING, HcpState.REQUESTING)
+            and self.current.required > len(self.comm.alive)
+        ):
+            if self.state is HcpState.REQUESTING:  # nobody left to come: withdraw, give it up
                 self._outbox.append(HelpRelease(self.id, t, self.current.id))
             self.current = None
             self.state = HcpState.DECISION
@@ -313,16 +324,17 @@ class HcpAgent:
             if self.current is not None and not self.helping and g.object == self.current.id:
                 # My request is staffed: hold the object until the partners have arrived.
                 self.state = HcpState.WAITING
-                self._outbox.append(HelpAccept(self.id, t, g.object,
-                                               tuple(a for a in g.agents if a != self.id)))
+                self._outbox.append(
+                    HelpAccept(self.id, t, g.object, tuple(a for a in g.agents if a != self.id))
+                )
             elif self.id in g.agents:
                 if self.current is not None and not self.helping:
-                    heapq.heappush(self.own, self.current.id)   # back to it after helping
+                    heapq.heappush(self.own, self.current.id)  # back to it after helping
                 self.current = self.comm.objects[g.object]
                 self.helping = True
                 self.state = HcpState.HELPING
         if self.offering is not None and self.comm.offered_to.get(self.id) != self.offering:
-            self.offering = None   # answered (chosen or not), lapsed, or never registered
+            self.offering = None  # answered (chosen or not), lapsed, or never registered
 
     # ------------------------------------------------------------------ failures
 
@@ -332,7 +344,7 @@ class HcpAgent:
         if self.id not in g.agents or self.current is None or self.current.id != g.object:
             return
         if self.comm.requester.get(g.object) == self.id and not self.helping:
-            if self.state is HcpState.MOVING:   # carried part of the way: it lies here now
+            if self.state is HcpState.MOVING:  # carried part of the way: it lies here now
                 self.current = replace(self.current, location=(self.position[0], self.position[1]))
                 self.comm.objects[g.object] = self.current
             self.state = HcpState.FETCHING
@@ -352,7 +364,7 @@ class HcpAgent:
             self.search = SearchModule(route([self.position] + self.sweeps_left.pop(0)))
             self.sweep_done = False
         self.part_done_sent = False
-        for o in lost.dropped:   # its own (requested by it, or carried alone), not a partner's
+        for o in lost.dropped:  # its own (requested by it, or carried alone), not a partner's
             if self.comm.requester.get(o.id, lost.agent) == lost.agent:
                 self._claim(o, t)
         for oid, req in sorted(self.comm.requester.items()):
@@ -384,8 +396,9 @@ class HcpAgent:
         return self._sweep(pos)
 
     def _plan_deciding(self, pos: Cell) -> list[Segment]:
-        if self.offering is None and (self.own or not self.sweep_done or not self.part_done_sent
-                                      or self.comm.closed):
+        if self.offering is None and (
+            self.own or not self.sweep_done or not self.part_done_sent or self.comm.closed
+        ):
             return []
         return [Segment("wait", HcpState.DECISION.value)]
 
@@ -402,11 +415,11 @@ class HcpAgent:
             return [Segment("wait", here.value)] if self.offering is not None else []
         out = [self._walk(here, pos, target)]
         if self.current.id in self.unsure:
-            return out                          # is it still there? looked at on arrival
+            return out  # is it still there? looked at on arrival
         if self.offering is not None:
             return out + [Segment("wait", here.value)]
         if self.current.required == 1 and target != self.current.destination:
-            return out + [self._carry(HcpState.MOVING, target)]   # alone: carried at once
+            return out + [self._carry(HcpState.MOVING, target)]  # alone: carried at once
         return out
 
     def _plan_waiting(self, pos: Cell) -> list[Segment]:
@@ -427,15 +440,20 @@ class HcpAgent:
             return []
         return [self._walk(HcpState.RETURNING, pos, self.base), Segment("wait", HcpState.FINISH.value)]
 
-    def _plan_standing(self, pos: Cell) -> list[Segment]:   # REQUESTING, FINISH: wait for news
+    def _plan_standing(self, pos: Cell) -> list[Segment]:  # REQUESTING, FINISH: wait for news
         return [Segment("wait", self.state.value)]
 
     _PLAN: ClassVar[dict[HcpState, Callable[[HcpAgent, Cell], list[Segment]]]] = {
-        HcpState.SEARCHING: _plan_searching, HcpState.DECISION: _plan_deciding,
-        HcpState.RESUMING: _plan_resuming, HcpState.FETCHING: _plan_fetching,
-        HcpState.REQUESTING: _plan_standing, HcpState.HELPING: _plan_helping,
-        HcpState.WAITING: _plan_waiting, HcpState.MOVING: _plan_moving,
-        HcpState.RETURNING: _plan_returning, HcpState.FINISH: _plan_standing,
+        HcpState.SEARCHING: _plan_searching,
+        HcpState.DECISION: _plan_deciding,
+        HcpState.RESUMING: _plan_resuming,
+        HcpState.FETCHING: _plan_fetching,
+        HcpState.REQUESTING: _plan_standing,
+        HcpState.HELPING: _plan_helping,
+        HcpState.WAITING: _plan_waiting,
+        HcpState.MOVING: _plan_moving,
+        HcpState.RETURNING: _plan_returning,
+        HcpState.FINISH: _plan_standing,
     }
 
     def _sweep(self, pos: Cell, state: HcpState = HcpState.SEARCHING) -> list[Segment]:
@@ -450,8 +468,9 @@ class HcpAgent:
 
     def _hold(self) -> Segment:
         assert self.current is not None
-        return Segment("hold", HcpState.WAITING.value, target=self.current.destination,
-                       object=self.current.id)
+        return Segment(
+            "hold", HcpState.WAITING.value, target=self.current.destination, object=self.current.id
+        )
 
     def _carry(self, state: HcpState, pos: Cell) -> Segment:
         assert self.current is not None
@@ -459,7 +478,7 @@ class HcpAgent:
         return Segment("carry", state.value, manhattan(pos, dest), target=dest, object=self.current.id)
 
     def next_event(self, t: int) -> int | None:
-        return None   # its knowledge changes only with messages
+        return None  # its knowledge changes only with messages
 
     def skip(self, t: int, position: Cell, segment: Segment, steps: int) -> None:
         self.t, self.position = t, position
@@ -473,13 +492,14 @@ class HcpAgent:
         return self.current.id if self.current is not None and self.state in _GROUP else None
 
     def departures(self) -> Mapping[int, int]:
-        return {}   # when a group will be complete is known only when it is
+        return {}  # when a group will be complete is known only when it is
 
     # ------------------------------------------------------------------ introspection
 
     def summary(self) -> AgentSummary:
-        return AgentSummary("help", None, 0, (), dict(self.comm.found_at), tuple(self.comm.warnings),
-                            repr(self.comm.groups))
+        return AgentSummary(
+            "help", None, 0, (), dict(self.comm.found_at), tuple(self.comm.warnings), repr(self.comm.groups)
+        )
 
     @property
     def phase(self) -> str:

@@ -1,6 +1,7 @@
 """What an HCP agent knows of the team's requests and offers (the same at every agent): the
 requests open, the standing offers, the staffing decisions, whose parts are done, and after a
 failure who inherits what (:mod:`ost_ros.protocols.hcp.agent` for the protocol)."""
+
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
@@ -41,10 +42,10 @@ class HcpComm:
     me: int
     team: TeamInfo
     objects: dict[int, ObjectInfo] = field(default_factory=dict)
-    found_at: dict[int, int] = field(default_factory=dict)     # own objects: step found
-    open: dict[int, int] = field(default_factory=dict)          # object -> requester
+    found_at: dict[int, int] = field(default_factory=dict)  # own objects: step found
+    open: dict[int, int] = field(default_factory=dict)  # object -> requester
     offers: dict[int, dict[int, int]] = field(default_factory=dict)  # object -> {agent: arrival}
-    offered_to: dict[int, int] = field(default_factory=dict)    # agent -> object (standing)
+    offered_to: dict[int, int] = field(default_factory=dict)  # agent -> object (standing)
     groups: list[HelpGroup] = field(default_factory=list)
     done_parts: set[int] = field(default_factory=set)
     warnings: list[str] = field(default_factory=list)
@@ -52,9 +53,9 @@ class HcpComm:
     # dead agent -> its heir (when it left a part to do).
     lost: dict[int, int] = field(default_factory=dict)
     requester: dict[int, int] = field(default_factory=dict)
-    broken: list[tuple[int, HelpGroup]] = field(default_factory=list)   # (dead agent, group)
-    inherited: dict[int, tuple[int, tuple[int, ...]]] = field(default_factory=dict)   # -> (heir, parts)
-    fallen: dict[int, ObjectInfo] = field(default_factory=dict)   # object -> where it was dropped
+    broken: list[tuple[int, HelpGroup]] = field(default_factory=list)  # (dead agent, group)
+    inherited: dict[int, tuple[int, tuple[int, ...]]] = field(default_factory=dict)  # -> (heir, parts)
+    fallen: dict[int, ObjectInfo] = field(default_factory=dict)  # object -> where it was dropped
 
     def __post_init__(self) -> None:
         self._ids = frozenset(self.team.agent_ids)
@@ -71,7 +72,7 @@ class HcpComm:
         self.lost[agent] = t
         self._ids = self._ids - {agent}
         for obj in [o for o, r in self.open.items() if r == agent]:
-            self._close(obj)                       # its request: nobody asks for it any more
+            self._close(obj)  # its request: nobody asks for it any more
         offered = self.offered_to.pop(agent, None)  # its standing offer lapses
         if offered is not None:
             self.offers.get(offered, {}).pop(agent, None)
@@ -81,7 +82,7 @@ class HcpComm:
         self.broken.extend((agent, g) for g in latest.values() if agent in g.agents)
         parts = tuple(self.parts.pop(agent, [agent]))
         if agent not in self.done_parts and self.alive:
-            heir = self.alive[0]                   # the lowest-id survivor takes its parts
+            heir = self.alive[0]  # the lowest-id survivor takes its parts
             self.inherited[agent] = (heir, parts)
             self.parts[heir].extend(parts)
             self.done_parts.discard(heir)
@@ -101,7 +102,7 @@ class HcpComm:
             by_kind.setdefault(type(msg), []).append(msg)
         self._take_requests(by_kind)
         for msg in _ordered(by_kind.get(AgentLost, []), lambda m: m.agent):
-            for o in msg.dropped:   # where a dead robot's load lies (sensing gives its origin)
+            for o in msg.dropped:  # where a dead robot's load lies (sensing gives its origin)
                 self.fallen[o.id] = o
             self._lose(msg.agent, msg.t)
         for msg in by_kind.get(HelpAccept, ()):
@@ -110,7 +111,7 @@ class HcpComm:
             if msg.sender in self._ids:
                 self.done_parts.add(msg.sender)
         formed: list[HelpGroup] = []
-        if HelpOffer not in by_kind:   # staffing changes only with new offers
+        if HelpOffer not in by_kind:  # staffing changes only with new offers
             return formed
         for obj in sorted(self.open):
             need = self.objects[obj].required - 1
@@ -136,8 +137,12 @@ class HcpComm:
                 self.objects[msg.object.id] = msg.object
                 self.offers[msg.object.id] = {}
         for msg in _ordered(by_kind.get(HelpOffer, []), lambda m: (m.object, m.sender)):
-            if (msg.object in self.open and msg.sender in ids and msg.sender not in self.offered_to
-                    and self.open[msg.object] != msg.sender):
+            if (
+                msg.object in self.open
+                and msg.sender in ids
+                and msg.sender not in self.offered_to
+                and self.open[msg.object] != msg.sender
+            ):
                 self.offers[msg.object][msg.sender] = msg.arrival
                 self.offered_to[msg.sender] = msg.object
 
@@ -146,12 +151,15 @@ class HcpComm:
             if g.object == msg.object:
                 expected = tuple(a for a in g.agents if a != msg.sender)
                 if tuple(sorted(msg.partners)) != expected:
-                    self.warnings.append(f"agent {msg.sender}: partners {list(msg.partners)} for "
-                                         f"object {msg.object} contradict the offers "
-                                         f"({list(expected)}); ignored")
+                    self.warnings.append(
+                        f"agent {msg.sender}: partners {list(msg.partners)} for "
+                        f"object {msg.object} contradict the offers "
+                        f"({list(expected)}); ignored"
+                    )
                 return
-        self.warnings.append(f"agent {msg.sender}: accept for object {msg.object} that was never "
-                             "staffed; ignored")
+        self.warnings.append(
+            f"agent {msg.sender}: accept for object {msg.object} that was never staffed; ignored"
+        )
 
     def lowest_open(self, exclude: int) -> int | None:
         """The highest-priority open request not made by ``exclude``."""

@@ -1,6 +1,7 @@
 """NCP, negotiated allocation: found objects are allocated by the negotiation library's slot
 negotiation (Rossi et al.'s target-points protocol, n_i slots per object) and the agreed groups
 are executed like a CCP schedule. Not in either paper: the two papers combined."""
+
 from __future__ import annotations
 
 from ost_msgs_py.messages import NegotiationOffer, ObjectFound, SearchDone
@@ -12,16 +13,19 @@ from ost_ros.protocols.shared.agent import STATES, ScheduleAgent
 from ost_ros.team import TeamInfo
 
 
-def make_agent(agent_id: int, team: TeamInfo, policy: CoordinationPolicy,
-               settings: NegotiationSettings | None = None) -> ScheduleAgent:
+def make_agent(
+    agent_id: int, team: TeamInfo, policy: CoordinationPolicy, settings: NegotiationSettings | None = None
+) -> ScheduleAgent:
     comm = NcpComm(agent_id, team, policy, settings=settings or NegotiationSettings())
     return ScheduleAgent(agent_id, team, comm, "ncp")
 
 
-def team_comm(team: TeamInfo, policy: CoordinationPolicy,
-              settings: NegotiationSettings | None = None) -> NcpComm:
-    return NcpComm(team.agent_ids[0], team, policy, settings=settings or NegotiationSettings(),
-                   voices=team.agent_ids)
+def team_comm(
+    team: TeamInfo, policy: CoordinationPolicy, settings: NegotiationSettings | None = None
+) -> NcpComm:
+    return NcpComm(
+        team.agent_ids[0], team, policy, settings=settings or NegotiationSettings(), voices=team.agent_ids
+    )
 
 
 def silence(agent: ScheduleAgent, step: int) -> None:
@@ -39,13 +43,14 @@ SPEC = ProtocolSpec(
     states=STATES,
     capabilities=Capabilities(own_sweeps=True, heterogeneous=True, triggers=True, team_knowledge=True),
     settings=NegotiationSettings,
-    options=(Option("ncp_delta", "delta", "claim discount per negotiation round, in (0, 1)"),
-             Option("ncp_timeout", "timeout_rounds",
-                    "rounds without an answer before a negotiator is left out")),
+    options=(
+        Option("ncp_delta", "delta", "claim discount per negotiation round, in (0, 1)"),
+        Option("ncp_timeout", "timeout_rounds", "rounds without an answer before a negotiator is left out"),
+    ),
     channels={"negotiation": (NegotiationOffer,)},
     team_comm=team_comm,
     silence=silence,
     note="Not in the paper: at each coordination point the found objects are allocated by the "
-         "target-points negotiation (docs/interpretation.md, NCP) and the agreed groups are "
-         "executed like a CCP schedule.",
+    "target-points negotiation (docs/interpretation.md, NCP) and the agreed groups are "
+    "executed like a CCP schedule.",
 )

@@ -12,6 +12,7 @@ one (opened at once if a trigger is due).
 Comm FSA: LISTENING —(coordination point)→ NEGOTIATING —(everyone left)→ LISTENING;
 LISTENING —(every agent searched, nothing unscheduled, no negotiation under way)→ CLOSED.
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -30,7 +31,7 @@ from ost_ros.team import TeamInfo
 
 class NcpState(str, Enum):
     LISTENING = "LISTENING"
-    NEGOTIATING = "NEGOTIATING"   # a negotiation is under way
+    NEGOTIATING = "NEGOTIATING"  # a negotiation is under way
     CLOSED = "CLOSED"
 
 
@@ -44,7 +45,7 @@ class NcpComm:
     team: TeamInfo
     policy: CoordinationPolicy
     settings: NegotiationSettings = field(default_factory=NegotiationSettings)
-    mute_from: int | None = None        # fault injection: send no negotiation moves from this step
+    mute_from: int | None = None  # fault injection: send no negotiation moves from this step
     voices: tuple[int, ...] = ()
     state: NcpState = NcpState.LISTENING
     negotiation: SlotNegotiation | None = None
@@ -78,9 +79,12 @@ class NcpComm:
             self._negotiate(t, moves)
         if self.negotiation is None:
             all_searched = len(k.searched) == self.team.size
-            if k.unscheduled and (all_searched or self.policy.due(
-                    t, len(k.unscheduled), self.team.searched_fraction(t - 1),
-                    self.team.searched_fraction(t))):
+            if k.unscheduled and (
+                all_searched
+                or self.policy.due(
+                    t, len(k.unscheduled), self.team.searched_fraction(t - 1), self.team.searched_fraction(t)
+                )
+            ):
                 self._open(t)
             elif all_searched and not k.unscheduled:
                 self.state = NcpState.CLOSED
@@ -90,7 +94,7 @@ class NcpComm:
         """The first step s >= t in which :meth:`receive` acts with no message (None: never)."""
         k = self.knowledge
         if self.negotiation is not None:
-            return t   # a round every step
+            return t  # a round every step
         if self.state is NcpState.CLOSED:
             return None
         if len(k.searched) == self.team.size:
@@ -103,8 +107,10 @@ class NcpComm:
             warn.append(f"negotiation move from agent {msg.sender}, not in the team; ignored")
             return
         if neg is None or msg.negotiation != neg.number or msg.round != neg.round:
-            warn.append(f"agent {msg.sender}: move for negotiation {msg.negotiation} "
-                        f"round {msg.round} out of turn; ignored")
+            warn.append(
+                f"agent {msg.sender}: move for negotiation {msg.negotiation} "
+                f"round {msg.round} out of turn; ignored"
+            )
             return
         k = self.team.index(msg.sender)
         if k in moves and moves[k] != msg:
@@ -120,8 +126,11 @@ class NcpComm:
         batch = [k.objects[i] for i in sorted(k.unscheduled)]
         k.unscheduled.clear()
         where = np.array([o.location for o in batch], dtype=np.int64).reshape(-1, 2)
-        reach = arrival_np(cost[None, :], np.abs(where[:, None, :] - loc[None, :, :]).sum(axis=2),
-                           self.team.period_array()[None, :])
+        reach = arrival_np(
+            cost[None, :],
+            np.abs(where[:, None, :] - loc[None, :, :]).sum(axis=2),
+            self.team.period_array()[None, :],
+        )
         self.negotiations += 1
         self.negotiation = SlotNegotiation.open(self.negotiations, batch, reach)
         self._send_move(t)
@@ -138,8 +147,9 @@ class NcpComm:
         # Agreed: every agent orders the same groups the same way (a CCP schedule).
         cost, loc = k.costs(t)
         batch = [k.objects[i] for i in neg.objects]
-        result = order_groups(self.team.agent_ids, cost, loc, batch, neg.groups(self.team.agent_ids),
-                              self.team.speed_periods)
+        result = order_groups(
+            self.team.agent_ids, cost, loc, batch, neg.groups(self.team.agent_ids), self.team.speed_periods
+        )
         k.assign(result.schedule)
         k.coordinations += 1
         self.negotiation = None

@@ -18,6 +18,7 @@ stands (Status), and DECISION may hand it a dead robot's unsearched cells (→ S
 Planned = executed: what the agent does while nobody speaks follows from the schedule alone, so
 :meth:`ScheduleAgent.plan` computes it segment by segment (no look-ahead by simulation).
 """
+
 from __future__ import annotations
 
 from collections import deque
@@ -49,13 +50,13 @@ from ost_ros.team import TeamInfo
 
 
 class GlobalState(str, Enum):
-    SEARCHING = SEARCHING_STATE   # sweeping its subarea (search module)
-    DECISION = "DECISION"         # picking the next scheduled object, or waiting for one
-    HELPING = "HELPING"           # going to the object
-    WAITING = "WAITING"           # at the object, waiting for the whole group
-    MOVING = "MOVING"             # carrying the object with the group
-    RETURNING = "RETURNING"       # nothing left anywhere: going back to base
-    FINISH = FINISH_STATE         # at base, done
+    SEARCHING = SEARCHING_STATE  # sweeping its subarea (search module)
+    DECISION = "DECISION"  # picking the next scheduled object, or waiting for one
+    HELPING = "HELPING"  # going to the object
+    WAITING = "WAITING"  # at the object, waiting for the whole group
+    MOVING = "MOVING"  # carrying the object with the group
+    RETURNING = "RETURNING"  # nothing left anywhere: going back to base
+    FINISH = FINISH_STATE  # at base, done
 
 
 STATES = tuple(s.value for s in GlobalState)
@@ -65,8 +66,8 @@ class ScheduleComm(Protocol):
     """What the agent needs of its comm module (CCP's or NCP's)."""
 
     knowledge: Knowledge
-    recovering: int | None        # the step a failure was learnt in (Status due the next step)
-    reset: bool                   # a failure cancelled the tasks not under way
+    recovering: int | None  # the step a failure was learnt in (Status due the next step)
+    reset: bool  # a failure cancelled the tasks not under way
 
     def receive(self, t: int, messages: Sequence[AgentMessage]) -> None: ...
     def drain(self) -> list[AgentMessage]: ...
@@ -88,16 +89,16 @@ class ScheduleAgent:
         self.team = team
         k = team.index(agent_id)
         self.base: Cell = team.bases[k]
-        self.period: int = team.periods[k] if team.periods else 1   # moves every `period` steps
+        self.period: int = team.periods[k] if team.periods else 1  # moves every `period` steps
         self.position: Cell = self.base
         self.t = 0
         self.state = GlobalState.SEARCHING
         self.search = SearchModule(team.search_path(k))
         self.comm = comm
         self.knowledge = comm.knowledge
-        self.tasks: deque[Assignment | Sweep] = deque()   # own schedule, in scheduling order
+        self.tasks: deque[Assignment | Sweep] = deque()  # own schedule, in scheduling order
         self.current: Assignment | None = None
-        self._seen_schedule = 0                   # how much of the global schedule was read
+        self._seen_schedule = 0  # how much of the global schedule was read
         self._outbox: list[AgentMessage] = []
 
     # ------------------------------------------------------------------ step, part 1: act
@@ -148,7 +149,7 @@ class ScheduleAgent:
                     self.current = None
                     self.state = GlobalState.DECISION
                     continue
-                if self.position != obj.location:     # it has moved: the group is carrying
+                if self.position != obj.location:  # it has moved: the group is carrying
                     self.state = GlobalState.MOVING
                 return ActionKind.CARRY, step_toward(self.position, obj.destination), obj.id
             elif s is GlobalState.RETURNING:
@@ -192,7 +193,7 @@ class ScheduleAgent:
 
     def _unread(self) -> list[Assignment | Sweep]:
         """Own entries of the global schedule not yet taken into the task list."""
-        return [a for a in self.knowledge.schedule[self._seen_schedule:] if self.id in a.agents]
+        return [a for a in self.knowledge.schedule[self._seen_schedule :] if self.id in a.agents]
 
     # ------------------------------------------------------------------ step, part 2: talk
 
@@ -212,7 +213,7 @@ class ScheduleAgent:
         """A team mate failed: keep only what is under way (a carry without it, a sweep)."""
         self.comm.reset = False
         self.tasks.clear()
-        self._seen_schedule = len(self.knowledge.schedule)   # kept entries are done or under way
+        self._seen_schedule = len(self.knowledge.schedule)  # kept entries are done or under way
         if self.current is not None and self.current not in self.knowledge.schedule:
             self.current = None
         if self.current is None and self.state not in (GlobalState.SEARCHING, GlobalState.DECISION):
@@ -233,9 +234,10 @@ class ScheduleAgent:
 
     def skip(self, t: int, position: Cell, segment: Segment, steps: int) -> None:
         self.t, self.position = t, position
-        if segment.kind == "sweep":   # it stands on the path's cell it has moved to
-            self.search.index = min(segment.index + moves_between(t - steps, t, segment.period),
-                                    len(segment.path) - 1)
+        if segment.kind == "sweep":  # it stands on the path's cell it has moved to
+            self.search.index = min(
+                segment.index + moves_between(t - steps, t, segment.period), len(segment.path) - 1
+            )
 
     def news(self, obj: ObjectInfo) -> bool:
         return obj.id not in self.knowledge.objects
@@ -252,9 +254,15 @@ class ScheduleAgent:
 
     def summary(self) -> AgentSummary:
         k = self.knowledge
-        return AgentSummary(self.comm.trigger, k.predicted_makespan, k.coordinations,
-                            tuple(k.assignments), dict(k.found_at), tuple(k.warnings),
-                            repr(k.schedule))
+        return AgentSummary(
+            self.comm.trigger,
+            k.predicted_makespan,
+            k.coordinations,
+            tuple(k.assignments),
+            dict(k.found_at),
+            tuple(k.warnings),
+            repr(k.schedule),
+        )
 
     @property
     def phase(self) -> str:
@@ -284,7 +292,7 @@ class _Planner:
         self.path: Sequence[Cell] = agent.search.path
         self.index = agent.search.index
         self.out: list[Segment] = []
-        self.handed_over = False   # a state or task changed before the first segment began
+        self.handed_over = False  # a state or task changed before the first segment began
 
     def add(self, kind: str, steps: int | None, **kw) -> bool:
         """Append a segment from step ``s`` (cut at the plan's end); False once the plan is over."""
@@ -293,8 +301,11 @@ class _Planner:
             steps, cut = self.end - self.s, True
         if steps is not None and steps <= 0:
             return not cut
-        if not self.out and (self.state is not self.a.state or self.current is not self.a.current
-                             or len(self.tasks) != len(self.a.tasks) + len(self.a._unread())):
+        if not self.out and (
+            self.state is not self.a.state
+            or self.current is not self.a.current
+            or len(self.tasks) != len(self.a.tasks) + len(self.a._unread())
+        ):
             self.handed_over = True
         self.out.append(Segment(kind, self.state.value, steps, **kw))
         if steps is None:
@@ -331,8 +342,12 @@ class _Planner:
             assert self.current is not None
             target = a.knowledge.objects[self.current.object].location
             if self.pos != target:
-                if not self.add("walk", arrival(self.s, manhattan(self.pos, target), a.period) - self.s,
-                                period=a.period, target=target):
+                if not self.add(
+                    "walk",
+                    arrival(self.s, manhattan(self.pos, target), a.period) - self.s,
+                    period=a.period,
+                    target=target,
+                ):
                     return False
                 self.pos = target
             self.state = G.WAITING
@@ -341,25 +356,34 @@ class _Planner:
             return self.carry()
         if self.state is G.RETURNING:
             if self.pos != a.base:
-                if not self.add("walk", arrival(self.s, manhattan(self.pos, a.base), a.period) - self.s,
-                                period=a.period, target=a.base):
+                if not self.add(
+                    "walk",
+                    arrival(self.s, manhattan(self.pos, a.base), a.period) - self.s,
+                    period=a.period,
+                    target=a.base,
+                ):
                     return False
                 self.pos = a.base
             self.state = G.FINISH
             return True
-        return self.add("wait", None)   # FINISH
+        return self.add("wait", None)  # FINISH
 
     def sweep(self) -> bool:
         """Follow the path to its last cell; standing there it says SearchDone: the plan ends."""
         path, i = self.path, self.index
-        if i >= len(path) or path[i] != self.pos:   # it has already moved on from path[i - 1]
+        if i >= len(path) or path[i] != self.pos:  # it has already moved on from path[i - 1]
             i -= 1
         if not 0 <= i < len(path) or path[i] != self.pos:
-            return False   # off its path (never in a consistent run): no plan is always safe
+            return False  # off its path (never in a consistent run): no plan is always safe
         last = len(path) - 1
         if i < last:
-            self.add("sweep", arrival(self.s, last - i, self.a.period) - self.s,
-                     period=self.a.period, path=path, index=i)
+            self.add(
+                "sweep",
+                arrival(self.s, last - i, self.a.period) - self.s,
+                period=self.a.period,
+                path=path,
+                index=i,
+            )
         return False
 
     def carry(self) -> bool:
@@ -373,8 +397,11 @@ class _Planner:
             return True
         if self.pos != obj.location:
             self.state = G.MOVING
-        k = group_period([a.team.periods[a.team.index(j)] for j in self.current.agents]) \
-            if a.team.periods else 1
+        k = (
+            group_period([a.team.periods[a.team.index(j)] for j in self.current.agents])
+            if a.team.periods
+            else 1
+        )
         kw = dict(period=k, target=obj.destination, object=obj.id)
         if self.s < self.current.start and not self.add("hold", self.current.start - self.s, **kw):
             return False

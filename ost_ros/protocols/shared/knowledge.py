@@ -5,6 +5,7 @@ Every agent stores every broadcast find, so every agent holds the same copy; wha
 the schedule (Algorithm Coordination, a negotiation, a coordinator's update) does so through
 :meth:`Knowledge.assign`, which moves each member's free time and place to the object's delivery.
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -31,17 +32,17 @@ class Knowledge:
     found_at: dict[int, int] = field(default_factory=dict)
     unscheduled: set[int] = field(default_factory=set)
     schedule: list[Entry] = field(default_factory=list)
-    searched: set[int] = field(default_factory=set)    # agents whose search work is done
+    searched: set[int] = field(default_factory=set)  # agents whose search work is done
     coordinations: int = 0
     predicted_makespan: int | None = None
     warnings: list[str] = field(default_factory=list)
-    drops: dict[int, Cell] = field(default_factory=dict)   # objects left where a failed group held them
+    drops: dict[int, Cell] = field(default_factory=dict)  # objects left where a failed group held them
 
     def __post_init__(self) -> None:
         n = self.team.size
-        self.lengths = self.team.sweep_lengths()       # when each agent's search work ends
-        self.free_at = np.zeros(n, dtype=np.int64)    # finish of each agent's last scheduled object
-        self.free_loc = self.team.sweep_ends()        # where it then stands (sweep end if none)
+        self.lengths = self.team.sweep_lengths()  # when each agent's search work ends
+        self.free_at = np.zeros(n, dtype=np.int64)  # finish of each agent's last scheduled object
+        self.free_loc = self.team.sweep_ends()  # where it then stands (sweep end if none)
 
     def note_found(self, obj: ObjectSpec, t: int) -> bool:
         """Store an object (sensed or heard of); True if it was new."""

@@ -9,6 +9,7 @@ schedule, with no word from the dead robot — planned = executed makes the past
 
 Readings in docs/interpretation.md ("Robot failures").
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -30,12 +31,11 @@ class Sweep:
     walk: int = 0
 
     @property
-    def agents(self) -> tuple[int, ...]:   # the schedule's interface: who executes it
+    def agents(self) -> tuple[int, ...]:  # the schedule's interface: who executes it
         return (self.agent,)
 
     @classmethod
-    def take_over(cls, agent: int, at: Cell, free: int, cells: tuple[Cell, ...],
-                  period: int = 1) -> Sweep:
+    def take_over(cls, agent: int, at: Cell, free: int, cells: tuple[Cell, ...], period: int = 1) -> Sweep:
         """``agent``, free at step ``free`` at cell ``at``, walks to ``cells[0]`` and sweeps on."""
         lead = route([at, cells[0]])
         path = tuple(lead) + tuple(cells[1:])
@@ -51,7 +51,7 @@ def remaining_sweep(sweep: Sweep, t: int, period: int = 1) -> tuple[Cell, ...]:
     if sweep.finish < t:
         return ()
     i = moves_between(sweep.start, t, period) if t > sweep.start else 0
-    return sweep.path[max(min(i, len(sweep.path) - 1), sweep.walk):]
+    return sweep.path[max(min(i, len(sweep.path) - 1), sweep.walk) :]
 
 
 def drop_cell(location: Cell, destination: Cell, start: int, t: int, period: int = 1) -> Cell:

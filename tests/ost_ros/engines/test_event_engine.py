@@ -1,6 +1,7 @@
 """The event-driven engine gives exactly the step simulator's run: every found time, the schedule,
 every object's group/start/delivery, every agent's cost/idle/carry/search/travel, the makespan,
 message and coordination counts — for CCP under every trigger kind, and for HCP."""
+
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -57,8 +58,11 @@ def test_engines_agree_on_crowded_scenarios(scenario, policy):
 def test_paper_sized_runs_agree():
     # One paper-sized object set (500x200, N=10, M=20) per protocol, end to end.
     s = generate_scenario(10, 20, 7)
-    for proto, policy in (("ccp", CoordinationPolicy(ci=1)), ("ccp", CoordinationPolicy(ci=20)),
-                          ("hcp", CoordinationPolicy())):
+    for proto, policy in (
+        ("ccp", CoordinationPolicy(ci=1)),
+        ("ccp", CoordinationPolicy(ci=20)),
+        ("hcp", CoordinationPolicy()),
+    ):
         same_run(simulate(s, proto, policy), simulate_events(s, proto, policy))
 
 
@@ -89,8 +93,11 @@ def _generic(scenario, protocol, policy):
 
 
 @settings(max_examples=150)
-@given(scenarios(width=(4, 40), height=(3, 16), agents=(1, 8), objects=(0, 14)), policies,
-       st.sampled_from(["ccp", "ncp"]))
+@given(
+    scenarios(width=(4, 40), height=(3, 16), agents=(1, 8), objects=(0, 14)),
+    policies,
+    st.sampled_from(["ccp", "ncp"]),
+)
 def test_generic_event_engine_equals_step_engine_for_every_protocol(scenario, policy, protocol):
     same_run(simulate(scenario, protocol, policy), _generic(scenario, protocol, policy))
 

@@ -1,6 +1,7 @@
 """Heterogeneous teams (agents of period k move one cell every k steps): the paper's promises
 still hold for CCP and NCP — no deadlock, nothing illegal, planned = executed — and the event
 engine is the same run as the step engine; HCP refuses such a team with a clear error."""
+
 import dataclasses
 
 import pytest
@@ -36,8 +37,7 @@ def test_hand_computed_slow_agent():
     # move of step 0, at t = 1. CI=1: coordinated in step 1, CA = max(2, 7) = 7 at (4,1): 3 moves (steps 8, 10,
     # 12) -> at (2,2) at 13; carry 2 cells to (2,0) in steps 14, 16 -> delivered 17; home
     # (0,1) is 3 moves: steps 18, 20, 22 -> 23.
-    s = build_scenario(Grid(5, 3), [ObjectSpec(0, (2, 2), (2, 0), 1)],
-                       agents=[AgentSpec(0, (0, 1), 2)])
+    s = build_scenario(Grid(5, 3), [ObjectSpec(0, (2, 2), (2, 0), 1)], agents=[AgentSpec(0, (0, 1), 2)])
     r = simulate(s, policy=CoordinationPolicy(ci=1))
     assert r.completed and r.rejections == []
     assert r.found == {0: 1}
@@ -68,14 +68,15 @@ def test_heterogeneous_runs_keep_the_promises(scenario, policy, protocol):
         assert (rec.start, rec.delivered) == (planned[rec.id].start, planned[rec.id].finish)
     ev = simulate_events(scenario, protocol, policy)
     assert ev.to_dict() == r.to_dict()
-    assert r.makespan >= lower_bound(scenario).value     # the unit-speed bound stays valid
+    assert r.makespan >= lower_bound(scenario).value  # the unit-speed bound stays valid
 
 
 def test_slower_team_is_slower_and_coordination_knows_it():
     objs = generate_objects(6, 3, Grid(30, 12), 2)
     fast = build_scenario(Grid(30, 12), objs, n_agents=4, nmax=2)
-    slow = build_scenario(Grid(30, 12), objs, nmax=2,
-                          agents=[dataclasses.replace(a, period=2) for a in fast.agents])
+    slow = build_scenario(
+        Grid(30, 12), objs, nmax=2, agents=[dataclasses.replace(a, period=2) for a in fast.agents]
+    )
     assert simulate(slow).makespan > simulate(fast).makespan
     # period 3, 2 cells away (moves in steps 0, 3: there at 4) loses to unit speed, 3 cells away
     # (there at 3); at unit speed for both it would win

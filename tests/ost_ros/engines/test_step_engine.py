@@ -1,6 +1,7 @@
 """The reference simulator: a hand-computed run, and the paper's promises as properties on random
 small scenarios (every object delivered once by n_i agents at once, one cell per step, no
 deadlock, planned = executed)."""
+
 from hypothesis import given, settings
 
 from ost_ros.coordination import Assignment, CoordinationPolicy
@@ -45,8 +46,9 @@ def test_no_objects_everyone_searches_and_returns():
 @given(scenarios(), policies)
 def test_paper_promises_hold(scenario, policy):
     trace = []
-    result = simulate(scenario, policy=policy,
-                      on_step=lambda world, actions: trace.append(dict(world.positions)))
+    result = simulate(
+        scenario, policy=policy, on_step=lambda world, actions: trace.append(dict(world.positions))
+    )
     # No deadlock, nothing illegal, every agent agrees on the schedule.
     assert result.completed, result.error
     assert result.rejections == [] and result.warnings == [] and result.agreement

@@ -1,4 +1,5 @@
 """Multi-party strategies: exit option, private constraints, determinism, time-out, errors."""
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -27,13 +28,24 @@ def replay_exits(task, result):
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.integers(2, 7), st.integers(1, 7), st.integers(0, 1000), st.sampled_from(["rounds", "all-against-all"]),
-       st.sampled_from(["farthest", "path"]))
+@given(
+    st.integers(2, 7),
+    st.integers(1, 7),
+    st.integers(0, 1000),
+    st.sampled_from(["rounds", "all-against-all"]),
+    st.sampled_from(["farthest", "path"]),
+)
 def test_target_exit_never_leaves_an_intersection(robots, n, seed, strategy, rule):
     pts = np.random.default_rng(seed).random((n, 2))
     task = TargetTask.from_points(pts)
-    res = negotiate(task, [AgentSpec(0.9, TargetReward())] * robots, strategy=strategy, drop_rule=rule,
-                    seed=seed, trace=False)
+    res = negotiate(
+        task,
+        [AgentSpec(0.9, TargetReward())] * robots,
+        strategy=strategy,
+        drop_rule=rule,
+        seed=seed,
+        trace=False,
+    )
     assert res.status == "agreed"
     for agent, share, others in replay_exits(task, res):
         assert len(others) == robots - 1, "nobody leaves before every partner has made an offer"
@@ -44,8 +56,10 @@ def test_target_exit_never_leaves_an_intersection(robots, n, seed, strategy, rul
     assert res.metrics()["G"] == pytest.approx(n)
 
 
-@pytest.mark.parametrize("robots, seed, strategy", [(3, 0, "rounds"), (3, 1, "rounds"), (4, 2, "rounds"),
-                                                     (3, 3, "all-against-all")])
+@pytest.mark.parametrize(
+    "robots, seed, strategy",
+    [(3, 0, "rounds"), (3, 1, "rounds"), (4, 2, "rounds"), (3, 3, "all-against-all")],
+)
 def test_area_exit_never_leaves_an_intersection(robots, seed, strategy):
     task = AreaTask(make_task_polygon(0.673))
     res = negotiate(task, [AgentSpec(0.9)] * robots, strategy=strategy, seed=seed, search=FAST, trace=False)
@@ -93,7 +107,7 @@ def test_fig4_shares_close_to_rubinstein():
     p1 = rubinstein_share(0.95, 0.955)
     final = res.trace[-1]["shares"]
     assert abs(final[0] - p1) < 0.05 and abs(final[1] - (1 - p1)) < 0.05
-    assert min(s["G"] for s in res.trace) > 0.6      # coverage kept during the negotiation
+    assert min(s["G"] for s in res.trace) > 0.6  # coverage kept during the negotiation
     assert res.metrics()["overlap"] <= 1e-9
 
 
@@ -104,12 +118,15 @@ def test_time_out_keeps_the_current_claims():
     assert len(res.shares) == 2
 
 
-@pytest.mark.parametrize("kwargs, msg", [
-    (dict(agents=[]), "at least one robot"),
-    (dict(strategy="coalitions"), "unknown strategy"),
-    (dict(max_rounds=0), "max_rounds"),
-    (dict(agents=[AgentSpec(0.9, TargetReward())]), "AreaReward"),
-])
+@pytest.mark.parametrize(
+    "kwargs, msg",
+    [
+        (dict(agents=[]), "at least one robot"),
+        (dict(strategy="coalitions"), "unknown strategy"),
+        (dict(max_rounds=0), "max_rounds"),
+        (dict(agents=[AgentSpec(0.9, TargetReward())]), "AreaReward"),
+    ],
+)
 def test_bad_negotiation_input(kwargs, msg):
     task = AreaTask(make_task_polygon(0.673))
     args = dict(task=task, agents=[AgentSpec(0.9)] * 2)

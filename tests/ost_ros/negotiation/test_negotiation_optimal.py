@@ -1,4 +1,5 @@
 """Exact target allocation against brute force on tiny cases."""
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -22,8 +23,13 @@ def test_route_length_collinear():
 
 
 @settings(max_examples=30, deadline=None)
-@given(st.integers(1, 3), st.integers(1, 4), st.integers(0, 10_000), st.booleans(),
-       st.sampled_from(["total", "max"]))
+@given(
+    st.integers(1, 3),
+    st.integers(1, 4),
+    st.integers(0, 10_000),
+    st.booleans(),
+    st.sampled_from(["total", "max"]),
+)
 def test_branch_and_bound_equals_brute_force(robots, n, seed, same_start, objective):
     rng = np.random.default_rng(seed)
     pts = rng.random((n, 2))

@@ -3,6 +3,7 @@
 (Named test_negotiation_partition.py, not test_partition.py: tests/ost_ros/test_partition.py
 exists, and pytest's default import mode cannot hold two test modules of the same basename.)
 """
+
 import json
 import subprocess
 import sys
@@ -42,15 +43,20 @@ FAST = AreaSearch(population=8, generations=2)
 
 def team(width, height, periods, zones=None, seed=0, **kw):
     zones = zones or {}
-    return SearchTeam(width, height, tuple(SearchRobot(i, p, tuple(zones.get(i, ())))
-                                           for i, p in enumerate(periods)), seed=seed, **kw)
+    return SearchTeam(
+        width,
+        height,
+        tuple(SearchRobot(i, p, tuple(zones.get(i, ()))) for i, p in enumerate(periods)),
+        seed=seed,
+        **kw,
+    )
 
 
 def sensed(path, height, width):
     """Cells within Chebyshev distance 1 of a visited cell (the 3×3 sensor)."""
     seen = np.zeros((height + 2, width + 2), dtype=bool)
     for x, y in path:
-        seen[y:y + 3, x:x + 3] = True        # padded by one on every side
+        seen[y : y + 3, x : x + 3] = True  # padded by one on every side
     return seen[1:-1, 1:-1]
 
 
@@ -98,7 +104,7 @@ def test_sweep_senses_every_cell_of_any_region(h, w, data):
 @given(st.integers(0, 6), st.integers(0, 6), st.integers(1, 14), st.integers(1, 14))
 def test_sweep_of_a_rectangle_is_the_osts(x0, y0, w, h):
     mask = np.zeros((y0 + h + 2, x0 + w + 2), dtype=bool)
-    mask[y0:y0 + h, x0:x0 + w] = True
+    mask[y0 : y0 + h, x0 : x0 + w] = True
     area = Subarea(x0, y0, w, h)
     assert region_sweep(mask) == sweep_waypoints(area)
     assert sweep_length(region_sweep(mask)) == plan_length(sweep_waypoints(area))
@@ -129,17 +135,18 @@ def test_resolve_covers_every_cell_once_with_an_allowed_robot(r_n, data):
     for i in range(r_n):
         if data.draw(st.booleans()):
             x0, y0, x1, y1 = data.draw(rects)
-            claims[i, min(y0, y1):max(y0, y1) + 1, min(x0, x1):max(x0, x1) + 1] = True
-    allowed = np.array(data.draw(st.lists(st.booleans(), min_size=r_n * h * w, max_size=r_n * h * w)),
-                       dtype=bool).reshape(r_n, h, w)
-    allowed[0] |= ~allowed.any(axis=0)            # no cell forbidden to everyone
+            claims[i, min(y0, y1) : max(y0, y1) + 1, min(x0, x1) : max(x0, x1) + 1] = True
+    allowed = np.array(
+        data.draw(st.lists(st.booleans(), min_size=r_n * h * w, max_size=r_n * h * w)), dtype=bool
+    ).reshape(r_n, h, w)
+    allowed[0] |= ~allowed.any(axis=0)  # no cell forbidden to everyone
     periods = data.draw(st.lists(st.integers(1, 4), min_size=r_n, max_size=r_n))
     res = resolve(claims, allowed, periods)
     owner = res.owner
     assert owner.min() >= 0 and owner.max() < r_n
     assert allowed[owner, np.arange(h)[:, None], np.arange(w)[None, :]].all()
     # a rectangle claim is one piece: its cells that nobody else claims and it may take stay its own
-    only = (claims.sum(axis=0) == 1)
+    only = claims.sum(axis=0) == 1
     for i in range(r_n):
         keep = claims[i] & only & allowed[i]
         assert (owner[keep] == i).all()
@@ -149,13 +156,13 @@ def test_resolve_covers_every_cell_once_with_an_allowed_robot(r_n, data):
 def test_resolve_releases_cut_off_pieces_and_prefers_the_faster_neighbour():
     claims = np.zeros((2, 3, 6), dtype=bool)
     claims[0, :, :3] = True
-    claims[0, 0, 5] = True                  # a cut-off piece of robot 0's claim
+    claims[0, 0, 5] = True  # a cut-off piece of robot 0's claim
     claims[1, :, 3:] = True
     claims[1, 0, 5] = False
     allowed = np.ones_like(claims)
     res = resolve(claims, allowed, [1, 1])
     assert res.fragments == 1 and res.unclaimed == 1
-    assert res.owner[0, 5] == 1             # its only neighbours are robot 1's
+    assert res.owner[0, 5] == 1  # its only neighbours are robot 1's
     # a gap between a slow and a fast robot goes to the one with the least load (period × cells)
     claims = np.zeros((2, 1, 5), dtype=bool)
     claims[0, 0, :2] = True
@@ -178,7 +185,7 @@ def test_cell_forbidden_to_every_robot_is_an_error():
 # ------------------------------------------------------------------ set-up ----------------------
 def test_search_time_is_the_osts_clock():
     assert [search_time(m, 1) for m in (0, 1, 10)] == [0, 1, 10]
-    assert [search_time(m, 3) for m in (0, 1, 10)] == [0, 1, 28]     # moves in steps 0, 3, ..., 27
+    assert [search_time(m, 3) for m in (0, 1, 10)] == [0, 1, 28]  # moves in steps 0, 3, ..., 27
 
 
 def test_patience_discounts_reach_the_targets_together():
@@ -186,7 +193,7 @@ def test_patience_discounts_reach_the_targets_together():
     d = patience_discounts(shares, 0.95)
     assert d[0] == pytest.approx(0.95) and d[1] == pytest.approx(0.95)
     k = np.log(shares.max()) / np.log(0.95)
-    assert d ** k == pytest.approx(shares)        # every claim is at its target in round K
+    assert d**k == pytest.approx(shares)  # every claim is at its target in round K
     assert (patience_discounts(np.full(5, 0.2), 0.9) == 0.9).all()
     assert patience_discounts(np.array([1.0]), 0.9).tolist() == [0.9]
 
@@ -194,11 +201,12 @@ def test_patience_discounts_reach_the_targets_together():
 def test_reward_prices_sweep_waste():
     c = 1 / 60
     r = SearchReward(cell=c)
-    strip = shapely.box(0, 0, 60 * c, 3 * c)            # one pass, no waste but the walk's end cells
-    tall = shapely.box(0, 0, 45 * c, 4 * c)             # same area, 4 rows: two passes
+    strip = shapely.box(0, 0, 60 * c, 3 * c)  # one pass, no waste but the walk's end cells
+    tall = shapely.box(0, 0, 45 * c, 4 * c)  # same area, 4 rows: two passes
     assert r.swept(np.array([strip.bounds]))[0] == pytest.approx(3 * c * 60 * c)
     assert r.swept(np.array([tall.bounds]))[0] > r.swept(np.array([strip.bounds]))[0]
     from ost_ros.negotiation.tasks import AreaTask
+
     task = AreaTask(shapely.box(0, 0, 1, 0.4))
     vals = r.batch_values(task, np.array([strip, tall]), [])
     assert vals[0] > vals[1]
@@ -260,7 +268,7 @@ def test_equal_partition_violations_are_counted_not_fixed():
     res = negotiate_partition(t, search=FAST)
     check_partition(res)
     assert res.equal_partition == (2, 1)
-    assert [r.equal_violations for r in res.robots] == [20, 0]     # robot 0 has the left half
+    assert [r.equal_violations for r in res.robots] == [20, 0]  # robot 0 has the left half
     assert (res.equal_owner[0:4, 0:5] == 0).all()
 
 
@@ -291,9 +299,11 @@ def test_deterministic_by_seed():
 
 
 def test_heterogeneous_team_searches_faster_than_the_equal_partition():
-    res = negotiate_partition(team(60, 24, [1, 1, 3, 3]))        # the command's own settings
+    res = negotiate_partition(team(60, 24, [1, 1, 3, 3]))  # the command's own settings
     check_partition(res)
-    assert res.equal_team_time == arrival(0, plan_length(sweep_waypoints(Subarea(0, 0, 15, 24))), 3)  # 4×1 strips
+    assert res.equal_team_time == arrival(
+        0, plan_length(sweep_waypoints(Subarea(0, 0, 15, 24))), 3
+    )  # 4×1 strips
     assert res.team_time < res.equal_team_time
     fast, slow = [r.cells for r in res.robots[:2]], [r.cells for r in res.robots[2:]]
     assert min(fast) > max(slow)
@@ -311,12 +321,17 @@ def test_apply_flags():
     out = apply_flags(spec, height=20, periods="2,3", seed=4)
     assert out["grid"] == {"width": 50, "height": 20}
     assert out["robots"] == [{"id": 7, "period": 2}, {"id": 9, "period": 3}] and out["seed"] == 4
-    assert spec["robots"][0]["period"] == 1                        # the file's dict is not changed
+    assert spec["robots"][0]["period"] == 1  # the file's dict is not changed
     assert apply_flags({}, periods="1,2")["robots"] == [{"period": 1}, {"period": 2}]
     assert apply_flags({}, robots=3)["robots"] == 3
     assert apply_flags({})["robots"] == 4
     t = SearchTeam.from_spec(apply_flags({}, periods="1,2", width=30, height=12))
-    assert (t.width, t.height, [r.period for r in t.robots], [r.id for r in t.robots]) == (30, 12, [1, 2], [0, 1])
+    assert (t.width, t.height, [r.period for r in t.robots], [r.id for r in t.robots]) == (
+        30,
+        12,
+        [1, 2],
+        [0, 1],
+    )
 
 
 def run_cli(capsys, *args):
@@ -378,8 +393,10 @@ def test_bad_team_files_are_one_line_exit_2(capsys, tmp_path, text, msg):
 
 def test_file_and_flags(capsys, tmp_path):
     f = tmp_path / "team.yaml"
-    f.write_text("grid: {width: 24, height: 9}\nseed: 2\nrobots:\n"
-                 "  - {id: 4, period: 1, forbidden: [[0, 0, 3, 2]]}\n  - {id: 8, period: 2}\n")
+    f.write_text(
+        "grid: {width: 24, height: 9}\nseed: 2\nrobots:\n"
+        "  - {id: 4, period: 1, forbidden: [[0, 0, 3, 2]]}\n  - {id: 8, period: 2}\n"
+    )
     code, out, _ = run_cli(capsys, "--file", str(f), "--periods", "1,3", "--json")
     assert code == 0
     d = json.loads(out)
@@ -393,12 +410,37 @@ def test_file_and_flags(capsys, tmp_path):
 
 def test_command_line_end_to_end(tmp_path):
     png = tmp_path / "map.png"
-    p = subprocess.run([sys.executable, "-m", "ost_ros.cli", "negotiate", "partition", "--width", "30",
-                        "--height", "12", "--periods", "1,2", "--seed", "1", "--plot", str(png)],
-                       cwd=REPO, capture_output=True, text=True, timeout=120)
+    p = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "ost_ros.cli",
+            "negotiate",
+            "partition",
+            "--width",
+            "30",
+            "--height",
+            "12",
+            "--periods",
+            "1,2",
+            "--seed",
+            "1",
+            "--plot",
+            str(png),
+        ],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert p.returncode == 0, p.stderr
     assert "team search time: negotiated" in p.stdout and "equal (2x1)" in p.stdout
     assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    p = subprocess.run([sys.executable, "-m", "ost_ros.cli", "negotiate", "partition", "--periods", "1,-2"],
-                       cwd=REPO, capture_output=True, text=True, timeout=120)
+    p = subprocess.run(
+        [sys.executable, "-m", "ost_ros.cli", "negotiate", "partition", "--periods", "1,-2"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr

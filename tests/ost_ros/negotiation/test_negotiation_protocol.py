@@ -1,4 +1,5 @@
 """Protocol level: Eq. 1–3, δ estimation and Rubinstein's closed form in one dimension."""
+
 import math
 
 import pytest
@@ -42,8 +43,8 @@ def test_estimate_discount_from_last_offers():
     assert estimate_discount([1.0, 0.9, 0.81, 0.729]) == pytest.approx(0.9)
     assert estimate_discount([1.0, 0.5, 0.45], window=1) == pytest.approx(0.9)
     assert estimate_discount([1.0, 0.5, 0.25], window=2) == pytest.approx(0.5)
-    assert estimate_discount([0.7]) is None            # one offer: nothing to compare
-    assert estimate_discount([0.5, 0.5]) is None       # not shrinking: no estimate
+    assert estimate_discount([0.7]) is None  # one offer: nothing to compare
+    assert estimate_discount([0.5, 0.5]) is None  # not shrinking: no estimate
     with pytest.raises(NegotiationError):
         estimate_discount([1, 0.9], window=0)
 

@@ -1,4 +1,5 @@
 """Private rewards and G against values computed by hand."""
+
 import numpy as np
 import pytest
 import shapely
@@ -21,22 +22,22 @@ def test_area_outside_t0_is_penalised():
     t = AreaTask(box(0, 0, 1, 1))
     s = box(-0.5, 0, 0.5, 1)  # half outside
     r = AreaReward(w_ill=0.0)
-    assert r.value(t, s, []) == pytest.approx(0.5 - 0.5)           # value inside − out
+    assert r.value(t, s, []) == pytest.approx(0.5 - 0.5)  # value inside − out
     literal = AreaReward(w_ill=0.0, value_inside=False)
-    assert literal.value(t, s, []) == pytest.approx(1.0 - 0.5)      # dim(S) − dim(S \ T0)
+    assert literal.value(t, s, []) == pytest.approx(1.0 - 0.5)  # dim(S) − dim(S \ T0)
 
 
 def test_nfz_example_section_2_2_by_hand():
     """§2.2: α = β = γ = 1, λ = 1000, dim(NFZ) = 0.03 inside the share of size 0.259."""
     t0 = box(0, 0, 1, 0.668)
     s_small, s_big = box(0, 0, 0.259 / 0.668, 0.668), box(0.259 / 0.668, 0, 0.668 / 0.668, 0.668)
-    nfz = box(0.05, 0.05, 0.05 + 0.15, 0.05 + 0.2)   # 0.03, inside s_small
+    nfz = box(0.05, 0.05, 0.05 + 0.15, 0.05 + 0.2)  # 0.03, inside s_small
     t = AreaTask(t0)
     r1 = AreaReward(w_overlap=1, w_ill=0)
     r2 = AreaReward(w_overlap=1, w_ill=0, forbidden=nfz, w_forbidden=1000)
-    assert r1.value(t, s_small, [s_big]) == pytest.approx(0.259)   # paper: 0.26
-    assert r1.value(t, s_big, [s_small]) == pytest.approx(0.409)   # paper: 0.41
-    assert r2.value(t, s_big, [s_small]) == pytest.approx(0.409)   # paper: 0.41
+    assert r1.value(t, s_small, [s_big]) == pytest.approx(0.259)  # paper: 0.26
+    assert r1.value(t, s_big, [s_small]) == pytest.approx(0.409)  # paper: 0.41
+    assert r2.value(t, s_big, [s_small]) == pytest.approx(0.409)  # paper: 0.41
     assert r2.value(t, s_small, [s_big]) == pytest.approx(0.259 - 30.0)  # paper prints −119.74
     assert r2.constraint_violation(s_small) == pytest.approx(0.03)
     assert global_coverage(t, [s_small, s_big]) == pytest.approx(0.668)

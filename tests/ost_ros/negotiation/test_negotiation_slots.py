@@ -1,5 +1,6 @@
 """The slot negotiation is one piece of code: NCP's comm modules run it round by round over the
 OST's messages, ``ost negotiate slots`` runs it standalone — and they agree group for group."""
+
 import json
 import subprocess
 import sys
@@ -31,12 +32,18 @@ def test_cli(tmp_path):
     s = generate_scenario(4, 6, 3, Grid(40, 16), 3)
     path = tmp_path / "s.yaml"
     path.write_text(dump_scenario(s))
-    r = subprocess.run([sys.executable, "-m", "ost_ros", "negotiate", "slots", "--scenario", str(path),
-                        "--json"], capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "ost_ros", "negotiate", "slots", "--scenario", str(path), "--json"],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     ncp = simulate(s, "ncp", CoordinationPolicy(ci=1000))
     assert out["groups"] == {str(o.id): list(o.agents) for o in ncp.objects}
-    bad = subprocess.run([sys.executable, "-m", "ost_ros", "negotiate", "slots", "--scenario", str(path),
-                          "--delta", "1"], capture_output=True, text=True)
+    bad = subprocess.run(
+        [sys.executable, "-m", "ost_ros", "negotiate", "slots", "--scenario", str(path), "--delta", "1"],
+        capture_output=True,
+        text=True,
+    )
     assert bad.returncode == 2 and "(0, 1)" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1

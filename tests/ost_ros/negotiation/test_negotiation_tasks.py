@@ -1,4 +1,5 @@
 """Task types: validation of bad input, geometry helpers and the message encoding."""
+
 import pytest
 from shapely.geometry import Polygon, box
 
@@ -7,14 +8,17 @@ from ost_ros.negotiation.messages import Offer
 from ost_ros.negotiation.tasks import AreaTask, TargetTask, hole_free, make_task_polygon
 
 
-@pytest.mark.parametrize("verts, msg", [
-    ([[0, 0], [1, 1]], "at least 3 distinct"),
-    ([[0, 0], [1, 0], [2, 0]], "degenerate|invalid"),
-    ([[0, 0], [1, 1], [0, 1], [1, 0]], "self-intersecting"),
-    ([[0, 0], [1, float("nan")], [0, 1]], "finite"),
-    ([1, 2, 3], "pairs"),
-    ([[0, 0], [0, 0], [0, 0], [1, 1]], "at least 3 distinct"),
-])
+@pytest.mark.parametrize(
+    "verts, msg",
+    [
+        ([[0, 0], [1, 1]], "at least 3 distinct"),
+        ([[0, 0], [1, 0], [2, 0]], "degenerate|invalid"),
+        ([[0, 0], [1, 1], [0, 1], [1, 0]], "self-intersecting"),
+        ([[0, 0], [1, float("nan")], [0, 1]], "finite"),
+        ([1, 2, 3], "pairs"),
+        ([[0, 0], [0, 0], [0, 0], [1, 1]], "at least 3 distinct"),
+    ],
+)
 def test_degenerate_polygons_are_refused(verts, msg):
     with pytest.raises(NegotiationError, match=msg):
         AreaTask.from_vertices(verts)

@@ -1,5 +1,6 @@
 """The CCP comm module never obeys a peer's selection: it recomputes it, and a selection that
 contradicts the algorithm (a faulty or false peer) is logged and ignored."""
+
 from ost_msgs_py.messages import ObjectFound, Selection
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid, ObjectSpec
@@ -16,10 +17,12 @@ def test_false_selection_is_detected_and_ignored():
         c.receive(0, [ObjectFound(0, 0, obj)])
     honest = [m for c in comms for m in c.drain()]
     schedule = list(comms[0].knowledge.schedule)
-    lie = Selection(1, 0, 1, (7,))              # agent 1 "selected" an object that does not exist
+    lie = Selection(1, 0, 1, (7,))  # agent 1 "selected" an object that does not exist
     for c in comms:
         c.receive(1, honest + [lie])
-    assert comms[0].knowledge.schedule == schedule == comms[1].knowledge.schedule     # nothing obeyed
-    assert any("agent 1: selection [7] in coordination 1 contradicts the algorithm" in w
-               for w in comms[0].knowledge.warnings)
+    assert comms[0].knowledge.schedule == schedule == comms[1].knowledge.schedule  # nothing obeyed
+    assert any(
+        "agent 1: selection [7] in coordination 1 contradicts the algorithm" in w
+        for w in comms[0].knowledge.warnings
+    )
     assert not any("contradicts" in w for w in comms[1].knowledge.warnings)  # its own is not checked

@@ -2,6 +2,7 @@
 and broadcasts the schedule, read by everyone a step later. Properties: every object delivered,
 planned = executed, everyone holds the coordinator's schedule; when the only coordination is the
 final one, the run is the distributed run shifted by exactly one step."""
+
 from dataclasses import replace
 
 import pytest
@@ -18,8 +19,9 @@ def test_coordinator_runs_deliver_everything_as_planned(s, policy):
     r = simulate(s, "ccp", replace(policy, organisation="coordinator"))
     assert r.completed and r.agreement and not r.rejections and not r.warnings
     assert r.predicted_makespan == r.makespan
-    assert all(o.delivered is not None and len(o.agents) == spec.required
-               for o, spec in zip(r.objects, s.objects))
+    assert all(
+        o.delivered is not None and len(o.agents) == spec.required for o, spec in zip(r.objects, s.objects)
+    )
     assert r.trigger.endswith(", coordinator")
 
 
@@ -30,15 +32,17 @@ def test_only_the_final_coordination_shifts_the_run_by_one_step(s):
     # differs, so every start, finish and the makespan move by one step.
     d = simulate(s, "ccp", CoordinationPolicy(ci=1000))
     c = simulate(s, "ccp", CoordinationPolicy(ci=1000, organisation="coordinator"))
-    assert [(a.object, a.agents, a.start + 1, a.finish + 1) for a in d.schedule] == \
-        [(a.object, a.agents, a.start, a.finish) for a in c.schedule]
+    assert [(a.object, a.agents, a.start + 1, a.finish + 1) for a in d.schedule] == [
+        (a.object, a.agents, a.start, a.finish) for a in c.schedule
+    ]
     assert c.makespan == d.makespan + 1
-    assert c.messages == d.messages - s.n_agents + 1   # n selections → one schedule update
+    assert c.messages == d.messages - s.n_agents + 1  # n selections → one schedule update
 
 
 def test_refused_combinations():
     from ost_ros.model import Grid
     from ost_ros.scenario import generate_scenario
+
     s = generate_scenario(3, 4, 1, Grid(20, 9), 2)
     policy = CoordinationPolicy(organisation="coordinator")
     with pytest.raises(ValueError, match="for ccp"):

@@ -3,6 +3,7 @@ with a carrier failing mid-carry, and the promises as properties on random scena
 least n_max survivors every object is still delivered, survivors agree, and (CCP) planned =
 executed after the last recovery; with fewer, the run ends saying which objects could not be
 moved and why."""
+
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -19,8 +20,8 @@ from strategies import policies, scenarios
 def test_moves_between_counts_movable_steps():
     assert moves_between(0, 5) == 5
     assert moves_between(3, 3) == 0 and moves_between(4, 2) == 0
-    assert moves_between(0, 5, 2) == 3          # steps 0, 2, 4
-    assert moves_between(1, 7, 3) == 2          # steps 3, 6
+    assert moves_between(0, 5, 2) == 3  # steps 0, 2, 4
+    assert moves_between(1, 7, 3) == 2  # steps 3, 6
     assert moves_between(3, 4, 3) == 1
 
 
@@ -30,18 +31,18 @@ def test_drop_cell_follows_the_carry_route():
     assert drop_cell((0, 0), (3, 2), 10, 12) == (2, 0)
     assert drop_cell((0, 0), (3, 2), 10, 10) == (0, 0)
     assert drop_cell((0, 0), (3, 2), 10, 99) == (3, 2)
-    assert drop_cell((0, 0), (3, 2), 10, 14, period=2) == (2, 0)   # steps 10 and 12
+    assert drop_cell((0, 0), (3, 2), 10, 14, period=2) == (2, 0)  # steps 10 and 12
 
 
 def test_remaining_sweep_and_take_over():
-    path = tuple(route([(0, 1), (5, 1)]))            # 6 cells, finish at step 5
+    path = tuple(route([(0, 1), (5, 1)]))  # 6 cells, finish at step 5
     sw = Sweep(7, path, 0, 5)
-    assert remaining_sweep(sw, 0) == path             # failed before sensing anything
-    assert remaining_sweep(sw, 2) == path[2:]         # stood on path[2] in step 2, unsensed
-    assert remaining_sweep(sw, 5) == path[5:]         # on the last cell, SearchDone not sent
-    assert remaining_sweep(sw, 6) == ()               # done in step 5
+    assert remaining_sweep(sw, 0) == path  # failed before sensing anything
+    assert remaining_sweep(sw, 2) == path[2:]  # stood on path[2] in step 2, unsensed
+    assert remaining_sweep(sw, 5) == path[5:]  # on the last cell, SearchDone not sent
+    assert remaining_sweep(sw, 6) == ()  # done in step 5
     t = Sweep.take_over(3, (2, 4), 20, path[2:])
-    assert t.path[0] == (2, 4) and t.path[t.walk:] == path[2:]
+    assert t.path[0] == (2, 4) and t.path[t.walk :] == path[2:]
     assert t.walk == 3 and t.start == 20 and t.finish == 20 + 3 + 3
 
 
@@ -54,7 +55,7 @@ def test_carrier_failing_mid_carry_leaves_the_object_where_it_was_held():
     s = two_robot_carry()
     base = simulate(s, policy=CoordinationPolicy(ci=1))
     (a,) = base.schedule
-    dead, t = a.agents[0], a.start + 2               # two cells carried, then a carrier fails
+    dead, t = a.agents[0], a.start + 2  # two cells carried, then a carrier fails
     r = simulate(s, policy=CoordinationPolicy(ci=1), failures={dead: t})
     assert r.completed and r.agreement and not r.rejections and not r.warnings
     assert r.failures == [{"agent": dead, "step": t}]
@@ -101,7 +102,7 @@ def failing_runs(draw):
     spare = s.n_agents - max((o.required for o in s.objects), default=1)
     ids = [a.id for a in s.agents]
     k = draw(st.integers(0 if spare < 1 else 1, max(spare, 0) + 1))
-    dead = draw(st.permutations(ids))[:min(k, len(ids) - 1)]
+    dead = draw(st.permutations(ids))[: min(k, len(ids) - 1)]
     return s, policy, {a: draw(st.integers(0, horizon)) for a in dead}
 
 
@@ -120,7 +121,7 @@ def test_failures_never_lose_an_object_the_survivors_can_carry(protocol, run):
         if o.delivered is not None:
             assert all(o.delivered <= failures[a] for a in set(o.agents) & set(failures))
     assert r.completed == all(o.delivered is not None for o in r.objects)
-    if protocol == "hcp":   # HCP predicts nothing; its staffing decisions are agreed
+    if protocol == "hcp":  # HCP predicts nothing; its staffing decisions are agreed
         return
     # planned = executed after the last recovery (none if the run ended before it closed)
     if r.predicted_makespan is not None:
@@ -133,14 +134,14 @@ def test_failures_never_lose_an_object_the_survivors_can_carry(protocol, run):
 @given(failing_runs(), st.lists(st.integers(1, 3), min_size=6, max_size=6))
 def test_failures_in_a_heterogeneous_team(run, periods):
     from ost_ros.model import AgentSpec
+
     s, policy, failures = run
     agents = [AgentSpec(a.id, a.base, periods[k]) for k, a in enumerate(s.agents)]
     s = build_scenario(s.grid, list(s.objects), partition=s.partition, agents=agents, nmax=s.nmax)
     r = simulate(s, policy=policy, failures=failures)
     survivors = s.n_agents - len(failures)
     assert not r.rejections and not r.warnings and r.agreement
-    assert all(o.delivered is not None for o, spec in zip(r.objects, s.objects)
-               if spec.required <= survivors)
+    assert all(o.delivered is not None for o, spec in zip(r.objects, s.objects) if spec.required <= survivors)
 
 
 def test_hcp_heir_takes_over_a_dead_owner_and_what_it_held():

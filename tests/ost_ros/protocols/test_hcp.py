@@ -1,6 +1,7 @@
 """The help-based protocol (HCP): a hand-checked run, and on random small scenarios the promises
 of the design — never a deadlock, every object delivered once by exactly n_i agents, no rejected
 action, every agent agrees on every staffing decision, the result independent of message order."""
+
 import random
 
 from hypothesis import given, settings
@@ -66,7 +67,7 @@ def test_hcp_never_deadlocks_and_delivers_each_object_once(scenario):
     for before, after in zip([start] + trace, trace):
         assert all(manhattan(before[i], after[i]) <= 1 for i in after)
     assert trace == [] or all(trace[-1][a.id] == a.base for a in scenario.agents)
-    for a in r.agents:   # every step before finishing is accounted exactly once
+    for a in r.agents:  # every step before finishing is accounted exactly once
         assert a.search + a.travel + a.carry + a.idle == a.cost
 
 
@@ -79,7 +80,7 @@ def _run_shuffled(scenario, seed):
         inbox = [m for ag in agents for m in ag.outbox()]
         for ag in agents:
             mine = list(inbox)
-            rng.shuffle(mine)   # over DDS every agent may see another order
+            rng.shuffle(mine)  # over DDS every agent may see another order
             ag.communicate(world.t, mine)
         world.apply(actions)
     return finish_result(world, agents, 0)

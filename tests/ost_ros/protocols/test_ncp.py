@@ -2,6 +2,7 @@
 never a deadlock, every object delivered by exactly n_i agents, every agent holds the same
 schedule, planned = executed, the event engine equals the step engine; a silent negotiator is
 timed out and the others conclude without it; a peer's illegal move is detected and ignored."""
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -37,8 +38,8 @@ def test_protected_are_the_cheapest_claimers():
 
 
 def test_decide_drops_the_farthest_unprotected_contested_object():
-    claims = np.ones((2, 3), dtype=bool)                 # both claim all three (n_i = 1 each)
-    reach = np.array([[1, 9], [2, 1], [5, 8]])           # C_ij: agent 0 is cheaper for 0 and 2
+    claims = np.ones((2, 3), dtype=bool)  # both claim all three (n_i = 1 each)
+    reach = np.array([[1, 9], [2, 1], [5, 8]])  # C_ij: agent 0 is cheaper for 0 and 2
     need = np.array([1, 1, 1])
     alive = np.ones(2, dtype=bool)
     # agent 1, cap 1: contested unprotected = {0, 2}; farthest by its key drops first
@@ -73,7 +74,7 @@ def test_settings_are_checked():
 def check_run(scenario, result):
     assert result.completed, result.error
     assert result.rejections == [] and result.warnings == [] and result.agreement
-    assert result.makespan == result.predicted_makespan          # planned = executed
+    assert result.makespan == result.predicted_makespan  # planned = executed
     planned = {a.object: a for a in result.schedule}
     assert sorted(planned) == [o.id for o in scenario.objects]
     for rec, obj in zip(result.objects, scenario.objects):
@@ -86,8 +87,9 @@ def check_run(scenario, result):
 @given(scenarios(agents=(1, 6), objects=(0, 9)), policies)
 def test_ncp_never_deadlocks_and_delivers_everything(scenario, policy):
     trace = []
-    result = simulate(scenario, "ncp", policy,
-                      on_step=lambda world, actions: trace.append(dict(world.positions)))
+    result = simulate(
+        scenario, "ncp", policy, on_step=lambda world, actions: trace.append(dict(world.positions))
+    )
     check_run(scenario, result)
     start = {a.id: a.base for a in scenario.agents}
     for before, after in zip([start] + trace, trace):
@@ -125,7 +127,7 @@ def test_silent_negotiator_is_timed_out_and_the_others_conclude():
     NCP.silence(agents[2], 0)
     r = run_agents(s, agents, policy)
     assert r.completed and r.agreement and r.rejections == []
-    assert all(2 not in a.agents for a in r.schedule)          # it never got a slot
+    assert all(2 not in a.agents for a in r.schedule)  # it never got a slot
     assert any("agent(s) 2 silent for 2 rounds" in w for w in r.warnings)
     assert sorted(a.object for a in r.schedule) == [o.id for o in s.objects]
 
@@ -136,11 +138,20 @@ def test_illegal_move_is_detected_and_ignored():
     neg = SlotNegotiation.open(1, objs, reach)
     st = NegotiationSettings()
     # round 0: agent 0 claims both; agent 1 claims object 7, which is not negotiated
-    neg.apply({0: NegotiationOffer(10, 0, 1, 0, "offer", (0, 1)),
-               1: NegotiationOffer(11, 0, 1, 0, "offer", (0, 7))}, (10, 11), st)
+    neg.apply(
+        {
+            0: NegotiationOffer(10, 0, 1, 0, "offer", (0, 1)),
+            1: NegotiationOffer(11, 0, 1, 0, "offer", (0, 7)),
+        },
+        (10, 11),
+        st,
+    )
     assert neg.missing.tolist() == [0, 1] and "agent 11: malformed" in neg.notes[-1]
     # round 1: agent 0 drops object 0, for which it is protected (cheapest claimer)
-    neg.apply({0: NegotiationOffer(10, 1, 1, 1, "offer", (1,)),
-               1: NegotiationOffer(11, 1, 1, 1, "offer", (0, 1))}, (10, 11), st)
+    neg.apply(
+        {0: NegotiationOffer(10, 1, 1, 1, "offer", (1,)), 1: NegotiationOffer(11, 1, 1, 1, "offer", (0, 1))},
+        (10, 11),
+        st,
+    )
     assert "protected" in neg.notes[-1] and neg.claims[0].tolist() == [True, True]
     assert not neg.done

@@ -1,6 +1,7 @@
 """The protocol registry: one place lists the protocols and what each can run; an unknown name or
 an impossible combination is one clear error everywhere; and a protocol added to the registry
 with one line is at once a choice of the CLI, the engines, the lockstep runtime and the study."""
+
 import contextlib
 import dataclasses
 import io
@@ -28,7 +29,7 @@ def test_names_and_specs():
     assert protocols.names() == ("ccp", "hcp", "ncp")
     for name, spec in protocols.REGISTRY.items():
         assert spec.name == name and spec.title and spec.states and spec.messages
-        assert "SEARCHING" in spec.states and "FINISH" in spec.states   # the world reads these
+        assert "SEARCHING" in spec.states and "FINISH" in spec.states  # the world reads these
 
 
 @pytest.mark.parametrize("name", protocols.names())
@@ -40,7 +41,9 @@ def test_every_agent_has_the_whole_interface(name):
 
 
 def test_unknown_name_is_one_clear_error_everywhere(tmp_path):
-    with pytest.raises(protocols.ProtocolError, match=r"unknown protocol 'auction' \(choose from ccp, hcp, ncp\)"):
+    with pytest.raises(
+        protocols.ProtocolError, match=r"unknown protocol 'auction' \(choose from ccp, hcp, ncp\)"
+    ):
         protocols.get("auction")
     s = generate_scenario(2, 2, 1, Grid(12, 6), 2)
     with pytest.raises(ValueError, match="unknown protocol 'auction'"):
@@ -53,19 +56,30 @@ def test_unknown_name_is_one_clear_error_everywhere(tmp_path):
         assert "auction" in r.stderr and "Traceback" not in r.stderr
 
 
-@pytest.mark.parametrize("name, what, text", [
-    ("hcp", dict(policy=CoordinationPolicy(organisation="coordinator")), "coordinator organisation is for ccp only"),
-    ("ncp", dict(failures=True), "ncp does not recover from failures (ccp and hcp do)"),
-    ("ccp", dict(failures=True, policy=CoordinationPolicy(organisation="coordinator")), "coordinator organisation does not recover"),
-    ("hcp", dict(silence=True), "does not negotiate"),
-])
+@pytest.mark.parametrize(
+    "name, what, text",
+    [
+        (
+            "hcp",
+            dict(policy=CoordinationPolicy(organisation="coordinator")),
+            "coordinator organisation is for ccp only",
+        ),
+        ("ncp", dict(failures=True), "ncp does not recover from failures (ccp and hcp do)"),
+        (
+            "ccp",
+            dict(failures=True, policy=CoordinationPolicy(organisation="coordinator")),
+            "coordinator organisation does not recover",
+        ),
+        ("hcp", dict(silence=True), "does not negotiate"),
+    ],
+)
 def test_capabilities_are_checked(name, what, text):
     with pytest.raises(protocols.ProtocolError, match=re.escape(text)):
         protocols.check(name, **what)
 
 
 def test_settings_from_options():
-    assert protocols.settings_from("ccp", {"ncp_delta": 0.5}) is None          # not its option
+    assert protocols.settings_from("ccp", {"ncp_delta": 0.5}) is None  # not its option
     assert protocols.settings_from("ncp", {"ncp_delta": 0.5}).delta == 0.5
     with pytest.raises(protocols.ProtocolError, match="--ncp-timeout: NCP time-out"):
         protocols.settings_from("ncp", {"ncp_timeout": 0})
