@@ -183,14 +183,16 @@ WORLD = -1  # sender of the world's notices
 class AgentLost:
     """The world's notice that agent ``agent`` failed in step ``t``: it acted for the last time in
     step t-1 and sent nothing from step t on. Every survivor gets it in the same step (the ROS
-    runtime carries it in ``Tick.failed``), so all agree on the survivor set. ``dropped``: the
-    objects it was holding (carrying, or holding for its group), at the cell where they lie — a
-    robot's last telemetry; CCP computes the same itself, HCP's heir needs it."""
+    runtime carries it in ``Tick.failed``), so all agree on the survivor set. ``dropped``: what
+    the robot itself last reported holding — the object its last action carried (or held for its
+    group), at the cell it stood on: its own telemetry, relayed by the world, nothing else
+    (docs/interpretation.md, "What a failure notice carries"). CCP computes the same itself;
+    HCP's heir needs it."""
 
     TYPE: ClassVar[str] = "agent_lost"
     agent: int
     t: int
-    dropped: tuple[ObjectInfo, ...] = ()  # what it was holding, where it fell (world truth)
+    dropped: tuple[ObjectInfo, ...] = ()  # its last reported load, where it stood
     sender: int = WORLD
     version: int = SCHEMA_VERSION
 

@@ -7,8 +7,8 @@ import json
 
 import pytest
 
-from corpus.harness import EXPECTED, digest, prepare, run_command, run_reproduction
-from corpus.runs import REPRODUCTIONS, commands, generate_commands
+from tests.corpus.harness import EXPECTED, digest, prepare, run_command, run_reproduction
+from tests.corpus.runs import REPRODUCTIONS, commands, generate_commands
 
 RECORDED = json.loads(EXPECTED.read_text())
 COMMANDS = dict(commands())
@@ -37,6 +37,7 @@ def test_output_is_unchanged(name, scratch):
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, argv", REPRODUCTIONS)
 def test_reproduction_tables_are_unchanged(name, argv, tmp_path):
     assert run_reproduction(argv, tmp_path) == RECORDED[name]

@@ -10,11 +10,7 @@ import re
 from pathlib import Path
 
 from ost_ros.cli import main
-
-try:  # run as a test module or as a script
-    from corpus.runs import REPRODUCTIONS, STATE, commands
-except ImportError:  # pragma: no cover
-    from runs import REPRODUCTIONS, STATE, commands  # type: ignore[no-redef]
+from tests.corpus.runs import REPRODUCTIONS, STATE, commands
 
 EXPECTED = Path(__file__).with_name("expected.json")
 # Lines of a generated report that state how long the run took on this machine.

@@ -10,8 +10,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import EXPECTED, record
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: tests.corpus
+from tests.corpus.harness import EXPECTED, record
 
 if __name__ == "__main__":
     with tempfile.TemporaryDirectory() as tmp:

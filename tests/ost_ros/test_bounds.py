@@ -1,6 +1,7 @@
 """The makespan lower bound: hand-computed terms on a tiny scenario, and never above any run's
 makespan (CCP under every trigger, HCP) on random scenarios."""
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -9,7 +10,7 @@ from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate_events
 from ost_ros.model import Grid, ObjectSpec
 from ost_ros.scenario import build_scenario, generate_scenario
-from strategies import scenarios
+from tests.strategies import scenarios
 
 
 def test_hand_computed_terms():
@@ -34,6 +35,7 @@ def test_bound_never_exceeds_a_run(scenario, ci):
         assert simulate_events(scenario, proto, policy).makespan >= b
 
 
+@pytest.mark.slow
 def test_paper_sized_bound_is_valid_and_close():
     s = generate_scenario(10, 50, 3)
     b = lower_bound(s)

@@ -225,6 +225,7 @@ def test_sim_bad_failures_are_one_line(scenario, args, text):
     assert r.returncode == 2 and text in r.stderr and len(r.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_faults_report_quick(tmp_path):
     out = tmp_path / "faults.md"
     r = ost("faults", "report", "--quick", "--out", out)

@@ -2,7 +2,7 @@
 
 import pytest
 
-from dds_helpers import Processes, free_domain, release_domain
+from tests.ros.dds_helpers import Processes, free_domain, release_domain
 
 
 @pytest.fixture

@@ -2,10 +2,10 @@
 
 import pytest
 
-from dds_helpers import ost_up, reference, result_json
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
+from tests.ros.dds_helpers import ost_up, reference, result_json
 
 CASES = [  # (agents, objects, seed, width, height, ci)
     (4, 8, 1, 30, 12, 1),

@@ -8,9 +8,9 @@ import sys
 
 import pytest
 
-from dds_helpers import ost_up, result_json
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
+from tests.ros.dds_helpers import ost_up, result_json
 
 
 @pytest.mark.parametrize("n, m, grid", [(4, 8, Grid(30, 12)), (10, 15, Grid(50, 20))])

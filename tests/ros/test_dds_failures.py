@@ -6,12 +6,12 @@ survivors, or a protocol that does not recover (ncp), end the run with a result 
 
 import subprocess
 
-from dds_helpers import kill_mid_run, ost_up, result_json
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
+from tests.ros.dds_helpers import kill_mid_run, ost_up, result_json
 
 
 def scenario_file(tmp_path, n=4, m=8, seed=1, grid=Grid(30, 12), nmax=3):

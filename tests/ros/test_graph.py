@@ -7,10 +7,10 @@ import subprocess
 import sys
 import time
 
-from dds_helpers import BIN, reference, ros_env
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
+from tests.ros.dds_helpers import BIN, reference, ros_env
 
 TOPICS = {
     "/clock": "rosgraph_msgs/msg/Clock",

@@ -10,10 +10,10 @@ import subprocess
 
 import pytest
 
-from dds_helpers import REPO, ost_up, reference, result_json
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
+from tests.ros.dds_helpers import REPO, ost_up, reference, result_json
 
 ROOT = os.geteuid() == 0
 NFT = shutil.which("nft") is not None

@@ -8,10 +8,10 @@ import subprocess
 import sys
 import threading
 
-from dds_helpers import ost_up, reference, result_json, ros_env
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
+from tests.ros.dds_helpers import ost_up, reference, result_json, ros_env
 
 STRAY = r"""
 import sys, time, rclpy

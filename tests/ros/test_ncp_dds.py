@@ -6,7 +6,6 @@ import json
 
 import pytest
 
-from dds_helpers import ost_up, reference, result_json
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import finish_result
@@ -15,6 +14,7 @@ from ost_ros.protocols import make_agents
 from ost_ros.protocols.ncp import SPEC as ncp
 from ost_ros.scenario import dump_scenario, generate_scenario
 from ost_ros.world import World
+from tests.ros.dds_helpers import ost_up, reference, result_json
 
 
 @pytest.mark.parametrize("ci", [1, 8])

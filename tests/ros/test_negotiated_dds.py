@@ -8,9 +8,9 @@ import sys
 
 import yaml
 
-from dds_helpers import ost_up, result_json
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
+from tests.ros.dds_helpers import ost_up, result_json
 
 
 def test_negotiated_partition_over_dds_equals_ost_sim(tmp_path):

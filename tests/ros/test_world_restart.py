@@ -5,10 +5,10 @@ run, and the result is exactly the uninterrupted run's (= ``ost sim``)."""
 import pickle
 import subprocess
 
-from dds_helpers import BIN, kill_mid_run, reference, result_json
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
+from tests.ros.dds_helpers import BIN, kill_mid_run, reference, result_json
 
 
 def test_world_killed_mid_run_resumes_from_checkpoint(tmp_path):
@@ -29,7 +29,7 @@ def test_world_killed_mid_run_resumes_from_checkpoint(tmp_path):
 
 
 def test_resume_refuses_a_foreign_checkpoint(tmp_path, domain):
-    from dds_helpers import ros_env
+    from tests.ros.dds_helpers import ros_env
 
     a = generate_scenario(2, 2, 1, Grid(12, 6), 2)
     path = tmp_path / "a.yaml"

@@ -7,13 +7,14 @@ import dataclasses
 import pytest
 
 from agent_node.runtime import AgentRuntime, ProtocolViolation
-from lockstep import run, wire
 from ost_msgs_py.runtime import Acted, AgentReport, Resend, RunEnd, StepMessages
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate
 from ost_ros.model import Grid
 from ost_ros.protocols import make_agents, names
 from ost_ros.scenario import generate_scenario
+from world_node.inprocess import run_lockstep as run
+from world_node.inprocess import wire
 from world_node.runtime import WorldRuntime
 
 CASES = [(4, 6, 1, 30, 12, 1), (4, 6, 1, 30, 12, 6), (10, 15, 2, 40, 20, 1), (6, 12, 5, 36, 18, 3)]

@@ -28,8 +28,8 @@ Failures (the world's :class:`AgentLost`, docs/interpretation.md "Robot failures
 survivor drops the dead agent's requests and offers; a group with it breaks — its requester, if
 alive, fetches the object where it now lies and asks again, its helpers go back to their work;
 unless the dead agent's part was done, it goes to its heir, the lowest-id survivor: its whole
-subarea, swept again (its finds died with it), and the objects it was holding, where the world
-says they fell (``AgentLost.dropped``).
+subarea, swept again (its finds died with it), and the object it last reported holding, where
+it stood (``AgentLost.dropped``: its own last telemetry, relayed by the world).
 
 The agent is a :class:`~ost_ros.protocols.base.ProtocolAgent`; its knowledge of requests and
 offers is :class:`~ost_ros.protocols.hcp.comm.HcpComm`.

@@ -3,6 +3,7 @@ every object's group/start/delivery, every agent's cost/idle/carry/search/travel
 message and coordination counts — for CCP under every trigger kind, and for HCP."""
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -14,7 +15,7 @@ from ost_ros.partition import choose_partition
 from ost_ros.protocols import make_agents
 from ost_ros.scenario import build_scenario, generate_objects, generate_scenario
 from ost_ros.sensing import first_sensing
-from strategies import policies, scenarios
+from tests.strategies import policies, scenarios
 
 
 def same_run(a, b):
@@ -46,6 +47,7 @@ def crowded(draw):
     return build_scenario(Grid(w, h), objects, partition=(m, k), nmax=nmax)
 
 
+@pytest.mark.slow
 @settings(max_examples=40)
 @given(crowded(), policies)
 def test_engines_agree_on_crowded_scenarios(scenario, policy):
@@ -55,6 +57,7 @@ def test_engines_agree_on_crowded_scenarios(scenario, policy):
     same_run(simulate(scenario, "ccp", policy), simulate_events(scenario, "ccp", policy))
 
 
+@pytest.mark.slow
 def test_paper_sized_runs_agree():
     # One paper-sized object set (500x200, N=10, M=20) per protocol, end to end.
     s = generate_scenario(10, 20, 7)
@@ -102,6 +105,7 @@ def test_generic_event_engine_equals_step_engine_for_every_protocol(scenario, po
     same_run(simulate(scenario, protocol, policy), _generic(scenario, protocol, policy))
 
 
+@pytest.mark.slow
 @settings(max_examples=25)
 @given(crowded(), policies)
 def test_generic_engine_on_crowded_scenarios(scenario, policy):

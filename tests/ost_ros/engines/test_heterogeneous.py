@@ -20,7 +20,7 @@ from ost_ros.scenario import (
     scenario_from_dict,
     scenario_to_dict,
 )
-from strategies import policies, scenarios
+from tests.strategies import policies, scenarios
 
 
 def test_arrival_and_group_period():

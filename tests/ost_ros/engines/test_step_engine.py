@@ -8,7 +8,7 @@ from ost_ros.coordination import Assignment, CoordinationPolicy
 from ost_ros.engines import simulate
 from ost_ros.model import Grid, ObjectSpec, manhattan
 from ost_ros.scenario import build_scenario, generate_objects
-from strategies import policies, scenarios
+from tests.strategies import policies, scenarios
 
 
 def one_agent_scenario():

@@ -98,6 +98,7 @@ def test_run_area_from_file_with_nfz(tmp_path):
     assert p.returncode == 0 and "robot 2" in p.stdout
 
 
+@pytest.mark.slow
 def test_reproduce_quick_writes_report(tmp_path):
     p = ost("reproduce", "--out", str(tmp_path), "--quick", "--runs", "1", "--no-progress", timeout=120)
     assert p.returncode == 0, p.stderr

@@ -11,7 +11,7 @@ from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate
 from ost_ros.negotiation.slots import after_search, negotiate_slots
 from ost_ros.scenario import dump_scenario
-from strategies import scenarios
+from tests.strategies import scenarios
 
 
 @settings(max_examples=60)

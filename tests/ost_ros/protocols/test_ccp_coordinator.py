@@ -10,7 +10,7 @@ from hypothesis import given, settings
 
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate
-from strategies import policies, scenarios
+from tests.strategies import policies, scenarios
 
 
 @settings(max_examples=80)

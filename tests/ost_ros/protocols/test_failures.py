@@ -14,7 +14,7 @@ from ost_ros.model import Grid, ObjectSpec, moves_between
 from ost_ros.protocols.shared.recovery import Sweep, drop_cell, remaining_sweep
 from ost_ros.scenario import build_scenario
 from ost_ros.search import route
-from strategies import policies, scenarios
+from tests.strategies import policies, scenarios
 
 
 def test_moves_between_counts_movable_steps():

@@ -13,7 +13,7 @@ from ost_ros.model import Grid, ObjectSpec, manhattan
 from ost_ros.protocols import make_agents
 from ost_ros.scenario import build_scenario, generate_objects
 from ost_ros.world import World
-from strategies import scenarios
+from tests.strategies import scenarios
 
 
 def test_single_agent_carries_alone_and_resumes_its_sweep():

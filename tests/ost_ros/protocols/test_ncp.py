@@ -16,7 +16,7 @@ from ost_ros.protocols import make_agents
 from ost_ros.protocols.ncp import SPEC as NCP
 from ost_ros.scenario import build_scenario, generate_objects, generate_scenario
 from ost_ros.world import World
-from strategies import policies, scenarios
+from tests.strategies import policies, scenarios
 
 
 def test_claim_cap_shrinks_geometrically():
@@ -99,6 +99,7 @@ def test_ncp_never_deadlocks_and_delivers_everything(scenario, policy):
     assert ev.to_dict() == result.to_dict() and ev.schedule == result.schedule
 
 
+@pytest.mark.slow
 def test_paper_sized_ncp_run_equals_event_engine():
     s = generate_scenario(10, 20, 7)
     for ci in (1, 20):

@@ -12,7 +12,6 @@ import sys
 
 import pytest
 
-from lockstep import run as lockstep_run
 from ost_ros import protocols
 from ost_ros.cli import main
 from ost_ros.coordination import CoordinationPolicy
@@ -21,6 +20,7 @@ from ost_ros.model import Grid
 from ost_ros.protocols.base import ProtocolAgent
 from ost_ros.scenario import dump_scenario, generate_scenario
 from ost_ros.study.design import compared
+from world_node.inprocess import run_lockstep as lockstep_run
 
 INTERFACE = [m for m in dir(ProtocolAgent) if not m.startswith("_")]
 

@@ -1,0 +1,1 @@
+"""Tests (a package, so that test folders named like the product packages never shadow them)."""

@@ -1,0 +1,64 @@
+"""The lockstep runtimes wired in one process, without DDS: the world's runtime and every agent's,
+each message through the codec exactly as the nodes exchange it. The same run as over DDS (and as
+``ost sim``), with the transport's figures (round trips, steps skipped on the agents' plans) —
+for tests, benchmarks, and for checking a new protocol's planner before starting processes.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from agent_node.runtime import AgentRuntime
+from ost_msgs_py import codec
+from ost_msgs_py.runtime import Acted, AgentReport, RunEnd, StepMessages
+from ost_ros.coordination import CoordinationPolicy
+from ost_ros.model import Scenario
+from ost_ros.protocols import make_agents
+from ost_ros.result import RunResult
+from world_node.runtime import WorldRuntime
+
+
+def wire(msg: Any) -> Any:
+    """A message as a receiver gets it: encoded and decoded."""
+    return codec.decode(codec.encode(msg))
+
+
+def run_lockstep(
+    scenario: Scenario,
+    protocol: str,
+    policy: CoordinationPolicy,
+    lookahead: int = 64,
+    skipping: bool = True,
+    kill: dict[int, int] | None = None,
+    settings: Any = None,
+) -> tuple[RunResult, WorldRuntime]:
+    """The run and the world's runtime (its figures). ``kill`` = {agent: step}: the agent's
+    process is gone from the first tick at or after that step (with skipping, the world may be
+    past it: then it fails later, as over DDS)."""
+    ids = tuple(a.id for a in scenario.agents)
+    rts = {a.id: AgentRuntime(a, ids, lookahead) for a in make_agents(scenario, protocol, policy, settings)}
+    world = WorldRuntime(scenario, skipping=skipping, protocol=protocol, organisation=policy.organisation)
+    nxt: list[Any] | RunEnd = world.start()
+    kill = dict(kill or {})
+    while True:
+        for a, t in list(kill.items()):
+            if not isinstance(nxt, RunEnd) and world.world.t >= t:
+                del rts[a], kill[a]
+                assert world.fail(a) is None  # the survivors still have to act
+        for r in rts.values():
+            if isinstance(nxt, RunEnd):
+                r.accept_end(wire(nxt))
+            else:
+                r.accept_tick(wire(next(k for k in nxt if k.observation.agent == r.me)))
+        out = [m for r in rts.values() for m in r.progress()]
+        for b in (m for m in out if isinstance(m, StepMessages)):
+            for r in rts.values():
+                r.accept_batch(wire(b))
+        for m in out:
+            if isinstance(m, Acted):
+                world.accept_acted(wire(m))
+            elif isinstance(m, AgentReport):
+                world.accept_report(wire(m))
+        if isinstance(nxt, RunEnd):
+            return world.result(), world
+        nxt = world.advance()
