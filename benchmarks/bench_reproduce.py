@@ -15,9 +15,8 @@ import tempfile
 import time
 
 from ost_ros.coordination import CoordinationPolicy
-from ost_ros.events import simulate_events
+from ost_ros.engines import simulate, simulate_events
 from ost_ros.scenario import generate_scenario
-from ost_ros.simulator import simulate
 
 
 def reproduce(quick: bool) -> None:

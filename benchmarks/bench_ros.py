@@ -21,9 +21,9 @@ from pathlib import Path
 
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.engines import simulate
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
-from ost_ros.simulator import simulate
 
 REPO = Path(__file__).resolve().parents[1]
 

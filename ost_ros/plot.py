@@ -39,7 +39,7 @@ def state_colours(protocol: str) -> dict[str, str]:
 @dataclass
 class Timeline:
     """Per agent, runs of equal global state: [state, first step, last step]. Feed it from the
-    simulator's ``on_step`` hook."""
+    step engine's ``on_step`` hook."""
 
     runs: dict[int, list[list]] = field(default_factory=dict)
 

@@ -184,7 +184,7 @@ class WorldRuntime:
         return tuple(i for i in self.live if i not in self._reports and i not in self._gone)
 
     def result(self) -> RunResult:
-        """The same record as ``ost_ros.simulator.finish_result``, from the agents' reports
+        """The same record as ``ost_ros.engines.finish_result``, from the agents' reports
         (the survivors': a failed agent reports nothing)."""
         reports = [self._reports[i] for i in self.live if i in self._reports]
         if self.aborted or not reports:  # ended early: the world's truth is all there is

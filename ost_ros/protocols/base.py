@@ -98,11 +98,6 @@ class ProtocolAgent(Protocol):
         ...
 
     @property
-    def phase(self) -> str:
-        """Its global state, as its actions report it."""
-        ...
-
-    @property
     def warnings(self) -> list[str]: ...
 
 

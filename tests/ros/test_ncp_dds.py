@@ -8,12 +8,11 @@ import pytest
 
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy
-from ost_ros.engines import finish_result
+from ost_ros.engines.step import run_steps
 from ost_ros.model import Grid
 from ost_ros.protocols import make_agents
 from ost_ros.protocols.ncp import SPEC as ncp
 from ost_ros.scenario import dump_scenario, generate_scenario
-from ost_ros.world import World
 from tests.ros.dds_helpers import ost_up, reference, result_json
 
 
@@ -45,15 +44,7 @@ def test_ncp_over_dds_equals_ost_sim(tmp_path, ci):
 def in_process_with_mute(scenario, policy, silent: int, step: int) -> dict:
     agents = make_agents(scenario, "ncp", policy)
     ncp.silence(agents[[a.id for a in scenario.agents].index(silent)], step)
-    world, messages = World(scenario), 0
-    while not world.done and world.t < 50_000:
-        actions = [ag.act(world.observe(ag.id)) for ag in agents]
-        inbox = [m for ag in agents for m in ag.outbox()]
-        messages += len(inbox)
-        for ag in agents:
-            ag.communicate(world.t, inbox)
-        world.apply(actions)
-    out = finish_result(world, agents, messages).to_dict()
+    out = run_steps(scenario, agents).to_dict()
     out["lower_bound"] = lower_bound(scenario).value
     return out
 

@@ -502,10 +502,6 @@ class HcpAgent:
         )
 
     @property
-    def phase(self) -> str:
-        return self.state.value
-
-    @property
     def done(self) -> bool:
         return self.state is HcpState.FINISH
 

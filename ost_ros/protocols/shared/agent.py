@@ -265,10 +265,6 @@ class ScheduleAgent:
         )
 
     @property
-    def phase(self) -> str:
-        return self.state.value
-
-    @property
     def done(self) -> bool:
         return self.state is GlobalState.FINISH
 

@@ -9,13 +9,13 @@ from hypothesis import given, settings
 
 from ost_msgs_py.messages import NegotiationOffer
 from ost_ros.coordination import Assignment, CoordinationPolicy, order_groups
-from ost_ros.engines import finish_result, simulate, simulate_events
+from ost_ros.engines import simulate, simulate_events
+from ost_ros.engines.step import run_steps
 from ost_ros.model import Grid, ObjectSpec, manhattan
 from ost_ros.negotiation.slots import NegotiationSettings, SlotNegotiation, claim_cap, decide, protected
 from ost_ros.protocols import make_agents
 from ost_ros.protocols.ncp import SPEC as NCP
 from ost_ros.scenario import build_scenario, generate_objects, generate_scenario
-from ost_ros.world import World
 from tests.strategies import policies, scenarios
 
 
@@ -109,16 +109,7 @@ def test_paper_sized_ncp_run_equals_event_engine():
 
 
 def run_agents(scenario, agents, policy):
-    world = World(scenario)
-    messages = 0
-    while not world.done and world.t < 20_000:
-        actions = [ag.act(world.observe(ag.id)) for ag in agents]
-        inbox = [m for ag in agents for m in ag.outbox()]
-        messages += len(inbox)
-        for ag in agents:
-            ag.communicate(world.t, inbox)
-        world.apply(actions)
-    return finish_result(world, agents, messages)
+    return run_steps(scenario, agents)
 
 
 def test_silent_negotiator_is_timed_out_and_the_others_conclude():
