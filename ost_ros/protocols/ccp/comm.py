@@ -38,7 +38,7 @@ from ost_msgs_py.messages import (
 )
 from ost_ros.coordination import Assignment, CoordinationPolicy, coordinate
 from ost_ros.model import Cell, group_period
-from ost_ros.protocols.shared.knowledge import Knowledge
+from ost_ros.protocols.shared.knowledge import Knowledge, QueuedMessages
 from ost_ros.protocols.shared.recovery import Sweep, drop_cell, remaining_sweep
 from ost_ros.team import TeamInfo
 
@@ -54,7 +54,7 @@ class CommState(str, Enum):
 
 
 @dataclass
-class CcpComm:
+class CcpComm(QueuedMessages):
     """The comm module of one CCP agent (``voices``: the agents it speaks for — itself, or the
     whole team when one module computes a run for everyone, :mod:`ost_ros.engines.analytic`)."""
 
@@ -375,15 +375,3 @@ class CcpComm:
     def closed(self) -> bool:
         """All agents have searched and every object is scheduled: nothing more will come."""
         return self.state is CommState.CLOSED
-
-    @property
-    def trigger(self) -> str:
-        return self.policy.name
-
-    def pending(self) -> bool:
-        """Messages queued for the next step (a selection, the coordinator's update)."""
-        return bool(self._outbox)
-
-    def drain(self) -> list[AgentMessage]:
-        out, self._outbox = self._outbox, []
-        return out

@@ -25,7 +25,7 @@ from ost_msgs_py.messages import AgentMessage, NegotiationOffer, ObjectFound, Se
 from ost_ros.coordination import Assignment, CoordinationPolicy, order_groups
 from ost_ros.model import Cell, arrival_np
 from ost_ros.negotiation.slots import NegotiationSettings, SlotNegotiation
-from ost_ros.protocols.shared.knowledge import Knowledge
+from ost_ros.protocols.shared.knowledge import Knowledge, QueuedMessages
 from ost_ros.team import TeamInfo
 
 
@@ -36,7 +36,7 @@ class NcpState(str, Enum):
 
 
 @dataclass
-class NcpComm:
+class NcpComm(QueuedMessages):
     """Shared knowledge plus the slot negotiation. ``voices``: the agents whose moves this module
     sends — itself, or everyone when one module computes the whole run (every module holds the
     same public state, so the moves are the same)."""
@@ -172,17 +172,6 @@ class NcpComm:
     @property
     def closed(self) -> bool:
         return self.state is NcpState.CLOSED
-
-    @property
-    def trigger(self) -> str:
-        return self.policy.name
-
-    def pending(self) -> bool:
-        return bool(self._outbox)
-
-    def drain(self) -> list[AgentMessage]:
-        out, self._outbox = self._outbox, []
-        return out
 
     def status(self, t: int, at: Cell, current: Assignment | None) -> Status:
         raise NotImplementedError("NCP does not recover from failures")

@@ -13,7 +13,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ost_ros.coordination import Assignment
+from ost_msgs_py.messages import AgentMessage
+from ost_ros.coordination import Assignment, CoordinationPolicy
 from ost_ros.model import Cell, ObjectSpec, arrival_np
 from ost_ros.protocols.shared.recovery import Sweep
 from ost_ros.team import TeamInfo
@@ -79,3 +80,23 @@ class Knowledge:
     def assignments(self) -> list[Assignment]:
         """The global schedule's objects (without take-over sweeps), in scheduling order."""
         return [a for a in self.schedule if isinstance(a, Assignment)]
+
+
+class QueuedMessages:
+    """What every shared-schedule comm module (CCP's, NCP's) does with the messages it queues for
+    the agent's next step, and the trigger it reports."""
+
+    _outbox: list[AgentMessage]
+    policy: CoordinationPolicy
+
+    @property
+    def trigger(self) -> str:
+        return self.policy.name
+
+    def pending(self) -> bool:
+        """Messages queued for the next step (a selection, an update, a negotiation move)."""
+        return bool(self._outbox)
+
+    def drain(self) -> list[AgentMessage]:
+        out, self._outbox = self._outbox, []
+        return out
