@@ -26,6 +26,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/launch", ["launch/team.launch.py"]),
     ],
     install_requires=["setuptools", "numpy", "PyYAML"],
     python_requires=">=3.12",

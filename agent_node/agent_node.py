@@ -30,8 +30,10 @@ from rclpy.node import Node
 from std_msgs.msg import String
 
 from agent_node import transport as tp
+from agent_node.params import declare as declare_param
 from agent_node.runtime import AgentRuntime, ProtocolViolation
-from ost_msgs_py.runtime import Ready, Resend, RunEnd, StepMessages, Tick
+from ost_msgs_py import wire
+from ost_msgs_py.runtime import Acted, AgentReport, Ready, Resend, RunEnd, Sample, Tick
 from ost_ros import protocols
 from ost_ros.coordination import ORGANISATIONS, CoordinationPolicy
 from ost_ros.model import Scenario
@@ -49,7 +51,8 @@ class ParameterError(ValueError):
 
 
 class AgentNode(Node):
-    """``/ost/agent_<id>``: parameters → core agent → :class:`AgentRunner` on its topics."""
+    """``<ns>/agent_<id>`` (default namespace ``/ost``): parameters → core agent →
+    :class:`AgentRunner` on its topics."""
 
     def __init__(self, name: str = "agent"):
         super().__init__(name, namespace=tp.NAMESPACE)
@@ -138,25 +141,30 @@ class AgentRunner:
         me = runtime.me
         q = tp.LOCKSTEP_QOS
         self.tick_topic = tp.tick_topic(me)
-        self.pub_acted = node.create_publisher(String, tp.ACTED, q)
-        self.pub_batch = node.create_publisher(String, tp.STEP_MESSAGES, q)
-        self.pub_ready = node.create_publisher(String, tp.READY, tp.LATCHED_ALL_QOS)
-        self.pub_report = node.create_publisher(String, tp.REPORTS, tp.LATCHED_ALL_QOS)
-        self.sub_tick = node.create_subscription(String, self.tick_topic, self.on_tick, q)
-        self.sub_batch = node.create_subscription(String, tp.STEP_MESSAGES, self.on_batch, q)
-        self.pub_resend = node.create_publisher(String, tp.RESEND, q)
-        self.sub_resend = node.create_subscription(String, tp.RESEND, self.on_resend, q)
+        self.pub_acted = node.create_publisher(wire.ros_type(Acted), tp.ACTED, q)
+        self.pub_ready = node.create_publisher(wire.ros_type(Ready), tp.READY, tp.LATCHED_ALL_QOS)
+        self.pub_report = node.create_publisher(wire.ros_type(AgentReport), tp.REPORTS, tp.LATCHED_ALL_QOS)
+        self.sub_tick = node.create_subscription(wire.ros_type(Tick), self.tick_topic, self.on_tick, q)
+        self.pub_resend = node.create_publisher(wire.ros_type(Resend), tp.RESEND, q)
+        self.sub_resend = node.create_subscription(wire.ros_type(Resend), tp.RESEND, self.on_resend, q)
         self.resent_at: float | None = None
-        self.sub_end = node.create_subscription(String, tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS)
-        # A protocol's own channels (NCP's moves) have their own topics (same QoS, same barrier).
-        self.channel_pubs = {
-            c: node.create_publisher(String, tp.channel_topic(c), q) for c in runtime.channels
+        self.sub_end = node.create_subscription(
+            wire.ros_type(RunEnd), tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS
+        )
+        # One topic per message kind of the protocol (object_found, selection, ...), every agent
+        # publishing and subscribing: all of them are part of the step's barrier.
+        self.kind_pubs = {
+            kind: node.create_publisher(wire.ros_type(kind), tp.message_topic(kind), q)
+            for kind in runtime.kinds
         }
-        self.channel_subs = [
+        self.kind_subs = [
             node.create_subscription(
-                String, tp.channel_topic(c), functools.partial(self.on_channel, channel=c), q
+                wire.ros_type(kind),
+                tp.message_topic(kind),
+                functools.partial(self.on_sample, kind=kind),
+                q,
             )
-            for c in runtime.channels
+            for kind in runtime.kinds
         ]
         self.sub_result = node.create_subscription(String, tp.RESULT, self.on_result, tp.RESULT_QOS)
         # Published to once (at ready); after that DDS asserts its liveliness by itself and the
@@ -176,13 +184,12 @@ class AgentRunner:
             self.pub_acted.get_subscription_count() >= 1
             and self.pub_ready.get_subscription_count() >= 1
             and self.pub_report.get_subscription_count() >= 1
-            and self.pub_batch.get_subscription_count() >= self.n
-            and self.sub_batch.get_publisher_count() >= self.n
             and self.sub_tick.get_publisher_count() >= 1
             and self.sub_end.get_publisher_count() >= 1
             and self.pub_alive.get_subscription_count() >= 1
-            and all(pub.get_subscription_count() >= self.n for pub in self.channel_pubs.values())
-            and all(sub.get_publisher_count() >= self.n for sub in self.channel_subs)
+            and self.pub_resend.get_subscription_count() >= self.n
+            and all(pub.get_subscription_count() >= self.n for pub in self.kind_pubs.values())
+            and all(sub.get_publisher_count() >= self.n for sub in self.kind_subs)
         )
 
     def on_timer(self) -> None:
@@ -191,7 +198,7 @@ class AgentRunner:
                 # One sample asserts this robot's liveliness at once (the world waits for it)
                 self.pub_alive.publish(String(data=f"agent {self.rt.me}"))
                 self.pub_ready.publish(
-                    tp.to_string(Ready(self.rt.me, self.protocol, self.fingerprint, self.organisation))
+                    wire.to_ros(Ready(self.rt.me, self.protocol, self.fingerprint, self.organisation))
                 )
                 self.ready_sent = True
                 self.world_seen = True
@@ -204,13 +211,13 @@ class AgentRunner:
             self.held_since = self.held_since or now
             if now - self.held_since > tp.RESEND_S and now - (self.resent_at or 0.0) > tp.RESEND_S:
                 self.pub_resend.publish(
-                    tp.to_string(Resend(self.rt.me, self.rt.last, held[1], self.rt.run or ""))
+                    wire.to_ros(Resend(self.rt.me, self.rt.last, held[1], self.rt.run or ""))
                 )
                 self.resent_at = now
             if now - self.held_since > STALL_S:
                 self.throttle.note(
                     ("stall", "barrier"),
-                    f"tick {held[0]} held for {STALL_S:g} s: no step messages yet "
+                    f"tick {held[0]} held for {STALL_S:g} s: messages missing "
                     f"from agents {list(held[1])} (asked again every "
                     f"{tp.RESEND_S:g} s)",
                 )
@@ -228,53 +235,47 @@ class AgentRunner:
     # ------------------------------------------------------------------ traffic
 
     def _progress(self) -> None:
-        while self.rt.dropped:  # batches of another run that came before the first tick
-            sender, why = self.rt.dropped.pop()
-            self.throttle.warn(tp.STEP_MESSAGES, f"agent {sender}", why)
+        while self.rt.dropped:  # messages of another run that came before the first tick
+            sample, why = self.rt.dropped.pop()
+            topic = self.kind_pubs[type(sample.message)].topic_name
+            self.throttle.warn(topic, f"agent {sample.message.sender}", why)
         for out in self.rt.progress():
-            if isinstance(out, StepMessages):
-                pub = self.channel_pubs.get(out.channel, self.pub_batch)
-                pub.publish(tp.to_string(out))
-            elif out.TYPE == "acted":
-                self.pub_acted.publish(tp.to_string(out))
+            if isinstance(out, Sample):
+                self.kind_pubs[type(out.message)].publish(wire.to_ros(out))
+            elif isinstance(out, Acted):
+                self.pub_acted.publish(wire.to_ros(out))
             else:
-                self.pub_report.publish(tp.to_string(out))
+                self.pub_report.publish(wire.to_ros(out))
                 self.node.get_logger().info(f"run ended; report sent ({self.rt.sent} messages)")
 
-    def _feed(self, msg: String, topic: str, expected, accept) -> None:
-        m = tp.decode_or_warn(msg, topic, expected, self.throttle)
+    def _feed(self, msg, topic: str, accept) -> None:
+        m = tp.from_ros_or_warn(msg, topic, self.throttle)
         if m is None:
             return
         try:
             accept(m)
         except ProtocolViolation as exc:
-            sender = getattr(m, "sender", None)
-            self.throttle.warn(topic, "world" if sender is None else f"agent {sender}", str(exc))
+            self.throttle.warn(topic, wire.sender_of(msg), str(exc))
             return
         self._progress()
 
-    def on_tick(self, msg: String) -> None:
-        if self.die_at >= 0:  # fault injection: die as a robot does, with no last word
-            tick = tp.decode_or_warn(msg, self.tick_topic, Tick, self.throttle)
-            if tick is not None and tick.t >= self.die_at:
-                self.node.get_logger().warning(
-                    f"die_at_step {self.die_at}: killing this process (SIGKILL) on the tick of step {tick.t}"
-                )
-                sys.stderr.flush()
-                os.kill(os.getpid(), signal.SIGKILL)
-        self._feed(msg, self.tick_topic, Tick, self.rt.accept_tick)
+    def on_tick(self, msg) -> None:
+        if 0 <= self.die_at <= msg.t:  # fault injection: die as a robot does, with no last word
+            self.node.get_logger().warning(
+                f"die_at_step {self.die_at}: killing this process (SIGKILL) on the tick of step {msg.t}"
+            )
+            sys.stderr.flush()
+            os.kill(os.getpid(), signal.SIGKILL)
+        self._feed(msg, self.sub_tick.topic_name, self.rt.accept_tick)
 
-    def on_batch(self, msg: String) -> None:
-        self._feed(msg, tp.STEP_MESSAGES, StepMessages, self.rt.accept_batch)
+    def on_sample(self, msg, kind: type) -> None:
+        self._feed(msg, self.kind_pubs[kind].topic_name, self.rt.accept_sample)
 
-    def on_channel(self, msg: String, channel: str) -> None:
-        self._feed(msg, tp.channel_topic(channel), StepMessages, self.rt.accept_batch)
+    def on_resend(self, msg) -> None:
+        self._feed(msg, self.sub_resend.topic_name, self.rt.accept_resend)
 
-    def on_resend(self, msg: String) -> None:
-        self._feed(msg, tp.RESEND, Resend, self.rt.accept_resend)
-
-    def on_end(self, msg: String) -> None:
-        self._feed(msg, tp.RUN_END, RunEnd, self.rt.accept_end)
+    def on_end(self, msg) -> None:
+        self._feed(msg, self.sub_end.topic_name, self.rt.accept_end)
 
     def on_result(self, msg: String) -> None:
         # The world has every report: this agent's job is over. A result before this agent
@@ -287,21 +288,40 @@ class AgentRunner:
 
 
 def declare(node: Node) -> None:
-    node.declare_parameter("agent_id", -1)
-    node.declare_parameter("scenario", "")
-    node.declare_parameter("agents", 0)
-    node.declare_parameter("protocol", "ccp")
+    """The agent's parameters, read-only with descriptors (``ros2 param describe``)."""
+    p = functools.partial(declare_param, node)
+    p("agent_id", -1, "this robot's id in the scenario's team (-1: unset)", -1, 1_000_000)
+    p("scenario", "", "scenario YAML file (ost generate); every node of a run loads the same")
+    p("agents", 0, "team size override (0: the scenario's team)", 0, 100_000)
+    p("protocol", "ccp", "cooperation protocol", constraints="one of " + ", ".join(protocols.names()))
     for spec in protocols.REGISTRY.values():
         for opt in spec.options:
-            node.declare_parameter(opt.name, protocols.option_default(spec, opt))
-    node.declare_parameter("mute_negotiation_from", -1)
-    node.declare_parameter("ci", 1)
-    node.declare_parameter("interval", 0)
-    node.declare_parameter("area_fraction", 0.0)
-    node.declare_parameter("coordination", "distributed")
-    node.declare_parameter("lookahead", 64)
-    node.declare_parameter("failure_timeout", tp.FAILURE_TIMEOUT_S)
-    node.declare_parameter("die_at_step", -1)
+            p(opt.name, protocols.option_default(spec, opt), f"{spec.name}: {opt.help}")
+    p("mute_negotiation_from", -1, "fault injection: no negotiation moves from this step on (-1: never)", -1)
+    p("ci", 1, "coordination trigger: coordinate after every ci-th found object", 1)
+    p("interval", 0, "coordination trigger: coordinate every interval steps (0: off)", 0)
+    p(
+        "area_fraction",
+        0.0,
+        "coordination trigger: coordinate per fraction of area searched (0: off)",
+        0.0,
+        1.0,
+    )
+    p(
+        "coordination",
+        "distributed",
+        "who runs Algorithm Coordination",
+        constraints="distributed or coordinator",
+    )
+    p("lookahead", 64, "quiet steps planned ahead for event skipping (0: off)", 0, 100_000)
+    p(
+        "failure_timeout",
+        tp.FAILURE_TIMEOUT_S,
+        "liveliness lease offered to the world (s; 0: none)",
+        0.0,
+        3600.0,
+    )
+    p("die_at_step", -1, "fault injection: SIGKILL this process on the tick of this step (-1: never)", -1)
 
 
 def agent_id_from_args(argv: list[str]) -> int | None:

@@ -1,25 +1,27 @@
 """The agent side of the lockstep protocol, ROS-free: one core agent driven by decoded messages.
 
-Per step the agent node feeds it a :class:`Tick` and peers' :class:`StepMessages`; it answers
-with what to publish. Order inside the agent is exactly the in-process simulator's:
+Per step the agent node feeds it a :class:`Tick` and peers' protocol messages (each a
+:class:`Sample` from the topic of its kind); it answers with what to publish. Order inside the
+agent is exactly the in-process simulator's:
 
-    Tick(t, last, peers) → comm module for step ``last`` with the batches of ``peers`` (+ own)
-                         → replay skipped steps last+1 .. t-1 from the own plan (no messages)
-                         → act(observation t) → publish Acted(t) and, if any, StepMessages(t)
+    Tick(t, last, peers, counts) → comm module for step ``last`` with the messages of ``peers``
+                                   (+ own), each sender's in its outbox order (``seq``)
+                                 → replay skipped steps last+1 .. t-1 from the own plan
+                                 → act(observation t) → publish the step's Samples, then Acted(t)
 
-A Tick is held until every listed peer's batch of step ``last`` is in (the counting barrier). The
-core agent runs unchanged; this class only orders its calls. A failure the world announces for
-step ``last`` (``Tick.failed``) joins that step's inbox as an ``AgentLost``, after the peers'
-messages — the simulator's order. Batches are published before the action, and every agent
-keeps the batches of the last few steps, so a peer's batch that a failed sender got to only
-some agents is relayed by the others on a Resend.
+A Tick is held until every listed peer's messages of step ``last`` are in, as many as the world
+counted (the counting barrier). The core agent runs unchanged; this class only orders its calls.
+A failure the world announces for step ``last`` (``Tick.failed``) joins that step's inbox as an
+``AgentLost``, after the peers' messages — the simulator's order. Samples are published before
+the action, and every agent keeps the messages of the last few steps, so a peer's message that a
+failed sender got to only some agents is relayed by the others on a Resend.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, cast
+from typing import Any
 
 from ost_msgs_py.messages import Action, AgentLost, AgentMessage, ObjectInfo, Observation
 from ost_msgs_py.runtime import (
@@ -29,8 +31,8 @@ from ost_msgs_py.runtime import (
     ProtocolViolation,
     Resend,
     RunEnd,
+    Sample,
     ScheduleEntry,
-    StepMessages,
     Tick,
 )
 from ost_ros import protocols
@@ -40,8 +42,8 @@ from ost_ros.protocols.plans import Plan, PlannedStep, unroll
 
 _SENSE = tuple((dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1))  # the world's sensing order
 
-
-STEP = "step"  # the channel of every protocol message without a channel of its own
+# Messages of one step: sender -> seq -> message.
+StepInbox = dict[int, dict[int, AgentMessage]]
 
 
 @dataclass
@@ -54,7 +56,7 @@ class AgentRuntime:
     finished: bool = False
     _tick: Tick | None = None
     _end: RunEnd | None = None
-    _batches: dict[int, dict[int, dict[str, StepMessages]]] = field(default_factory=dict)
+    _inbox: dict[int, StepInbox] = field(default_factory=dict)  # step -> what peers sent
     _own: list[AgentMessage] = field(default_factory=list)
     _plan: tuple[PlanStep, ...] = ()
     _known: dict[int, ObjectInfo] = field(default_factory=dict)
@@ -62,17 +64,17 @@ class AgentRuntime:
     # Recovery from a lost sample: what was published for the last step, to publish again.
     _last_tick: Tick | None = None
     _last_out: list[Any] = field(default_factory=list)
-    _batches_sent: dict[int, list[StepMessages]] = field(default_factory=dict)
+    _sent: dict[int, list[Sample]] = field(default_factory=dict)  # step -> own samples
     _resend: list[Any] = field(default_factory=list)
-    _relay: dict[int, dict[int, dict[str, StepMessages]]] = field(default_factory=dict)
+    _relay: dict[int, StepInbox] = field(default_factory=dict)  # finished steps' inboxes
     _report: AgentReport | None = None
     run: str | None = None  # the world's run id, from the first tick
-    _early: list[StepMessages] = field(default_factory=list)  # batches before the first tick
-    dropped: list[tuple[int, str]] = field(default_factory=list)  # (sender, why): other runs'
+    _early: list[Sample] = field(default_factory=list)  # samples before the first tick
+    dropped: list[tuple[Sample, str]] = field(default_factory=list)  # early samples refused, why
 
     def __post_init__(self) -> None:
-        # the transport channels of the agent's protocol: "step", then its own (registry)
-        self.channels: dict[str, tuple[type, ...]] = dict(protocols.get(self.agent.protocol).channels)
+        # the message kinds of the agent's protocol (the registry): a topic each
+        self.kinds: tuple[type, ...] = protocols.get(self.agent.protocol).messages
 
     @property
     def me(self) -> int:
@@ -80,67 +82,67 @@ class AgentRuntime:
 
     # ------------------------------------------------------------------ input
 
-    def accept_batch(self, batch: StepMessages) -> None:
+    def accept_sample(self, sample: Sample) -> None:
+        """One protocol message of a peer (from the topic of its kind)."""
         if self.run is None:
-            self._early.append(batch)  # checked once the first tick says which run this is
+            self._early.append(sample)  # checked once the first tick says which run this is
             return
-        if batch.run != self.run:
-            raise ProtocolViolation(f"step_messages of run {batch.run!r}, this is run {self.run!r}")
-        if batch.sender == self.me:
-            return  # own batch: kept locally when sent
-        if batch.sender not in self.team:
-            raise ProtocolViolation(f"step_messages from agent {batch.sender}, not in the team")
-        if (batch.channel != STEP and batch.channel not in self.channels) or not 1 <= batch.parts <= 1 + len(
-            self.channels
-        ):
-            raise ProtocolViolation(
-                f"step_messages of agent {batch.sender}: channel {batch.channel!r}, {batch.parts} parts"
-            )
-        if batch.t < self.last:
-            return  # a re-sent batch of a step already done (see Resend)
-        parts = self._batches.setdefault(batch.t, {}).setdefault(batch.sender, {})
-        known = parts.get(batch.channel)
+        m = sample.message
+        if sample.run != self.run:
+            raise ProtocolViolation(f"{m.TYPE} of run {sample.run!r}, this is run {self.run!r}")
+        if m.sender == self.me:
+            return  # own message: kept locally when sent
+        if m.sender not in self.team:
+            raise ProtocolViolation(f"{m.TYPE} from agent {m.sender}, not in the team")
+        if type(m) not in self.kinds:
+            raise ProtocolViolation(f"{m.TYPE} is not a message of protocol {self.agent.protocol}")
+        if sample.step < self.last:
+            return  # a re-sent message of a step already done (see Resend)
+        msgs = self._inbox.setdefault(sample.step, {}).setdefault(m.sender, {})
+        known = msgs.get(sample.seq)
         if known is not None:
-            if known == batch:
-                return  # the same batch again (see Resend)
+            if known == m:
+                return  # the same message again (see Resend)
             raise ProtocolViolation(
-                f"second, different step_messages of agent {batch.sender} for step {batch.t}"
+                f"second, different message #{sample.seq} of agent {m.sender} in step {sample.step}"
             )
-        if any(p.parts != batch.parts for p in parts.values()):
-            raise ProtocolViolation(
-                f"step_messages of agent {batch.sender} for step {batch.t} disagree on their number of parts"
-            )
-        parts[batch.channel] = batch
+        msgs[sample.seq] = m
 
     def accept_resend(self, req: Resend) -> None:
-        """A peer lacks this agent's batch of step ``req.t``: publish it again (if there was one)."""
+        """A peer lacks messages of step ``req.t``: publish this agent's again, and relay what it
+        holds of the other listed peers (a sender may be dead)."""
         if req.run != self.run:
             raise ProtocolViolation(f"resend request of run {req.run!r}, this is run {self.run!r}")
         if req.sender not in self.team:
             raise ProtocolViolation(f"resend request from agent {req.sender}, not in the team")
         if self.me in req.peers:
-            self._resend.extend(b for b in self._batches_sent.get(req.t, ()) if b not in self._resend)
-        for peer in req.peers:  # relay what this agent holds of others (a sender may be dead)
+            self._resend.extend(s for s in self._sent.get(req.t, ()) if s not in self._resend)
+        for peer in req.peers:
             if peer in (self.me, req.sender):
                 continue
-            parts = self._relay.get(req.t, {}).get(peer) or self._batches.get(req.t, {}).get(peer) or {}
-            self._resend.extend(b for b in parts.values() if b not in self._resend)
+            msgs = self._relay.get(req.t, {}).get(peer) or self._inbox.get(req.t, {}).get(peer) or {}
+            for seq, m in sorted(msgs.items()):
+                sample = Sample(m, req.t, seq, self.run)
+                if sample not in self._resend:
+                    self._resend.append(sample)
 
     def accept_tick(self, tick: Tick) -> None:
         if tick.observation.agent != self.me or tick.observation.t != tick.t:
             raise ProtocolViolation(
                 f"tick for agent {tick.observation.agent} step {tick.observation.t}, this is agent {self.me}"
             )
+        if len(tick.peers) != len(tick.counts):
+            raise ProtocolViolation(f"tick lists {len(tick.peers)} peers and {len(tick.counts)} counts")
         if self.run is not None and tick.run != self.run:
             raise ProtocolViolation(f"tick of run {tick.run!r}, this is run {self.run!r}")
         if self.run is None and tick.t == 0 and tick.last == -1:
             self.run = tick.run
             early, self._early = self._early, []
-            for b in early:
+            for sample in early:
                 try:
-                    self.accept_batch(b)
+                    self.accept_sample(sample)
                 except ProtocolViolation as exc:
-                    self.dropped.append((b.sender, str(exc)))
+                    self.dropped.append((sample, str(exc)))
         elif self.run is None:
             raise ProtocolViolation(f"tick for step {tick.t} before this agent's first tick")
         if tick == self._tick:
@@ -168,6 +170,8 @@ class AgentRuntime:
             return
         if end == self._end:
             return
+        if len(end.peers) != len(end.counts):
+            raise ProtocolViolation(f"run_end lists {len(end.peers)} peers and {len(end.counts)} counts")
         if end.last != self.last or end.steps - end.last - 1 > len(self._plan):
             raise ProtocolViolation(
                 f"run_end after step {end.last} (+{end.steps - end.last - 1} "
@@ -178,36 +182,44 @@ class AgentRuntime:
     # ------------------------------------------------------------------ progress
 
     def held(self) -> tuple[int, tuple[int, ...]] | None:
-        """A tick held by the barrier: its step and the peers whose step messages are missing."""
+        """A tick held by the barrier: its step and the peers whose messages are missing."""
         if self._tick is None:
             return None
-        return self._tick.t, tuple(p for p in self._tick.peers if p != self.me and not self._has(p))
+        tick = self._tick
+        return tick.t, tuple(
+            p for p, n in zip(tick.peers, tick.counts) if p != self.me and not self._has(p, n)
+        )
 
-    def _has(self, peer: int) -> bool:
-        """Every part of ``peer``'s batch of step ``self.last`` is in."""
-        parts = self._batches.get(self.last, {}).get(peer)
-        return parts is not None and len(parts) > 0 and len(parts) == next(iter(parts.values())).parts
+    def _has(self, peer: int, count: int) -> bool:
+        """All ``count`` messages of ``peer`` for step ``self.last`` are in."""
+        msgs = self._inbox.get(self.last, {}).get(peer, {})
+        return all(k in msgs for k in range(count))
 
-    def _ready(self, peers: tuple[int, ...]) -> bool:
-        return all(p == self.me or self._has(p) for p in peers)
+    def _ready(self, peers: tuple[int, ...], counts: tuple[int, ...]) -> bool:
+        if len(peers) != len(counts):
+            return False  # never from the world (the node checks it); a held tick shows it
+        return all(p == self.me or self._has(p, n) for p, n in zip(peers, counts))
 
-    def _finish_step(self, peers: tuple[int, ...], until: int, failed: tuple[AgentLost, ...] = ()) -> None:
+    def _finish_step(
+        self,
+        peers: tuple[int, ...],
+        counts: tuple[int, ...],
+        until: int,
+        failed: tuple[AgentLost, ...] = (),
+    ) -> None:
         """Comm module for ``self.last``, then replay the skipped steps up to ``until`` - 1."""
         if self.last >= 0:
-            have = self._batches.pop(self.last, {})
+            have = self._inbox.pop(self.last, {})
             self._relay[self.last] = have
             while len(self._relay) > 3:
                 del self._relay[min(self._relay)]
-            inbox = []
+            count = dict(zip(peers, counts))
+            inbox: list[AgentMessage] = []
             for sender in self.team:
                 if sender == self.me:
                     inbox.extend(self._own)
-                elif sender in peers:
-                    # the sender's outbox order: its comm module's (own channels) first
-                    parts = have[sender]
-                    for channel in (*self.channels, STEP):
-                        if channel in parts:
-                            inbox.extend(cast(Sequence[AgentMessage], parts[channel].messages))
+                elif sender in count:  # the sender's outbox order
+                    inbox.extend(have[sender][k] for k in range(count[sender]))
             inbox.extend(m for m in failed if m.t == self.last)
             self._learn(inbox)
             self.agent.communicate(self.last, inbox)
@@ -227,9 +239,9 @@ class AgentRuntime:
     def progress(self) -> list:
         """Everything that can be done now; returns the messages to publish, in order."""
         out, self._resend = self._resend, []
-        if self._tick is not None and self._ready(self._tick.peers):
+        if self._tick is not None and self._ready(self._tick.peers, self._tick.counts):
             tick, self._tick = self._tick, None
-            self._finish_step(tick.peers, tick.t, tick.failed)
+            self._finish_step(tick.peers, tick.counts, tick.t, tick.failed)
             obs = tick.observation
             self._learn(obs.sensed)
             plan = self.agent.plan(obs.t, obs.position) if self.lookahead else ()
@@ -239,22 +251,22 @@ class AgentRuntime:
             self._own = list(messages)
             self.sent += len(messages)
             self._plan = self._plan_steps(plan, obs, action) if plan and not messages else ()
-            # Batches first: once the world has the action, the batches are out (if this process
+            # Messages first: once the world has the action, the messages are out (if this process
             # dies right after, the world counts them and peers can relay them).
             step_out: list = []
             if messages:
-                batches = split_batch(self.me, tick.t, messages, self.run or "", self.channels)
-                step_out.extend(batches)
-                self._batches_sent[tick.t] = batches
-                # A peer is at most one lockstep step behind: keep the last few batches only.
-                while len(self._batches_sent) > 3:
-                    del self._batches_sent[min(self._batches_sent)]
+                samples = [Sample(m, tick.t, k, self.run or "") for k, m in enumerate(messages)]
+                step_out.extend(samples)
+                self._sent[tick.t] = samples
+                # A peer is at most one lockstep step behind: keep the last few steps only.
+                while len(self._sent) > 3:
+                    del self._sent[min(self._sent)]
             step_out.append(Acted(action, len(messages), self._plan, self.run or ""))
             self._last_tick, self._last_out = tick, step_out
             out.extend(step_out)
-        if self._end is not None and self._tick is None and self._ready(self._end.peers):
+        if self._end is not None and self._tick is None and self._ready(self._end.peers, self._end.counts):
             end, self._end = self._end, None
-            self._finish_step(end.peers, end.steps, end.failed)
+            self._finish_step(end.peers, end.counts, end.steps, end.failed)
             self.finished = True
             self._report = self.report()
             out.append(self._report)
@@ -320,23 +332,6 @@ class AgentRuntime:
             k.view,
             run=self.run or "",
         )
-
-
-def split_batch(
-    sender: int,
-    t: int,
-    messages: Sequence[AgentMessage],
-    run: str = "",
-    channels: Mapping[str, tuple[type, ...]] | None = None,
-) -> list[StepMessages]:
-    """A step's messages as batches per channel: each protocol message kind its protocol gives a
-    channel of its own goes there (NCP's moves), the rest on ``step``."""
-    own = {cls: name for name, kinds in (channels or {}).items() for cls in kinds}
-    split: dict[str, list[AgentMessage]] = {STEP: []}
-    for m in messages:
-        split.setdefault(own.get(type(m), STEP), []).append(m)
-    parts = [(c, tuple(ms)) for c, ms in split.items() if ms]
-    return [StepMessages(sender, t, cast(tuple[Any, ...], ms), c, len(parts), run) for c, ms in parts]
 
 
 def _same_action(action: Action, step: PlanStep | PlannedStep) -> bool:

@@ -1,9 +1,13 @@
-"""What the world node and the agent nodes share on the wire: topic names, QoS, decoding.
+"""What the world node and the agent nodes share on the wire: topic names, types, QoS, conversion.
 
-Every runtime message is JSON text (:mod:`ost_msgs_py.codec`) in ``std_msgs/msg/String``.
-QoS per topic (see docs/ros.md): everything the lockstep needs is reliable + keep-all, so no
-sample of a step is ever dropped (loss would break agreement); discovery hand-shakes and the
-result are transient-local, so a late joiner still gets them.
+Every topic name is relative, so it lives under the node's namespace (default ``/ost``; ``-r
+__ns:=/team_a`` moves a whole team). Each protocol message kind has a topic of its own, named by
+its kind (``object_found``, ``selection``, ``help_request``, ...; a run has the topics of its
+protocol only) and typed by its ``ost_msgs`` interface; the lockstep has ``agent_<i>/tick``,
+``acted``, ``ready``, ``run_end``, ``reports``, ``resend``. QoS per topic (docs/ros.md):
+everything the lockstep needs is reliable + keep-all, so no sample of a step is ever dropped
+(loss would break agreement); discovery hand-shakes and the result are transient-local, so a
+late joiner still gets them.
 """
 
 from __future__ import annotations
@@ -11,34 +15,35 @@ from __future__ import annotations
 import faulthandler
 import hashlib
 import time
+from typing import Any
 
 from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
-from std_msgs.msg import String
 
-from ost_msgs_py import codec
-from ost_msgs_py.codec import MessageError
+from ost_msgs_py import wire
+from ost_msgs_py.runtime import Acted, AgentReport, Ready, Resend, RunEnd, Tick
+from ost_msgs_py.wire import MessageError
 from ost_ros import protocols
 from ost_ros.model import Scenario
 from ost_ros.scenario import dump_scenario
 
-NAMESPACE = "/ost"
+NAMESPACE = "/ost"  # the nodes' default namespace
 WORLD_NODE = "world"
 
-CLOCK = "/clock"
-MARKERS = "/ost/markers"
-ACTED = "/ost/acted"  # agent → world
-STEP_MESSAGES = "/ost/step_messages"  # agent → all agents
-RESEND = "/ost/resend"  # agent → agents: publish a lost batch again
-READY = "/ost/ready"  # agent → world
-RUN_END = "/ost/run_end"  # world → all agents
-REPORTS = "/ost/reports"  # agent → world
-RESULT = "/ost/result"  # world → anyone
+# Relative names (resolved in the node's namespace).
+CLOCK = "clock"  # sim time; remap to /clock for tools that use sim time
+MARKERS = "markers"
+ACTED = "acted"  # agent → world
+RESEND = "resend"  # agent → agents: publish lost messages again
+READY = "ready"  # agent → world
+RUN_END = "run_end"  # world → all agents
+REPORTS = "reports"  # agent → world
+RESULT = "result"  # world → anyone (JSON of `ost sim --json`)
 
 
-def channel_topic(channel: str) -> str:
-    """Agent → all agents: a protocol's own channel (e.g. NCP's ``negotiation``), in its runs only."""
-    return f"{NAMESPACE}/{channel}"
+def message_topic(kind: type) -> str:
+    """Agent → all agents: the topic of one protocol message kind (its ``TYPE``)."""
+    return str(getattr(kind, "TYPE"))  # noqa: B009 - every message class has one (mypy: type)
 
 
 def agent_node_name(agent_id: int) -> str:
@@ -47,13 +52,13 @@ def agent_node_name(agent_id: int) -> str:
 
 def tick_topic(agent_id: int) -> str:
     """World → one agent: its observation of the step (one topic per robot, like a sensor)."""
-    return f"{NAMESPACE}/{agent_node_name(agent_id)}/tick"
+    return f"{agent_node_name(agent_id)}/tick"
 
 
 def alive_topic(agent_id: int) -> str:
-    """Agent → world: nothing is published; its liveliness (QoS, asserted by DDS itself) is
-    how the world learns that the robot's process is gone."""
-    return f"{NAMESPACE}/{agent_node_name(agent_id)}/alive"
+    """Agent → world: one sample at the start; then its liveliness (QoS, asserted by DDS itself)
+    is how the world learns that the robot's process is gone."""
+    return f"{agent_node_name(agent_id)}/alive"
 
 
 # Liveliness lease (s): an agent whose liveliness is lost for it and then for as long again (with
@@ -107,32 +112,28 @@ LATEST_QOS = QoSProfile(
     durability=DurabilityPolicy.VOLATILE,
 )
 
-# Topic → (QoS, who publishes, who subscribes): the documented graph, checked by the tests.
+# Topic → (QoS, type): the run's graph, documented in docs/ros.md and checked by the tests.
 TOPICS: dict[str, tuple[QoSProfile, str]] = {
     CLOCK: (LATEST_QOS, "rosgraph_msgs/msg/Clock"),
     MARKERS: (LATEST_QOS, "visualization_msgs/msg/MarkerArray"),
-    ACTED: (LOCKSTEP_QOS, "std_msgs/msg/String"),
-    STEP_MESSAGES: (LOCKSTEP_QOS, "std_msgs/msg/String"),
-    RESEND: (LOCKSTEP_QOS, "std_msgs/msg/String"),
-    READY: (LATCHED_ALL_QOS, "std_msgs/msg/String"),
-    RUN_END: (LATCHED_ALL_QOS, "std_msgs/msg/String"),
-    REPORTS: (LATCHED_ALL_QOS, "std_msgs/msg/String"),
+    ACTED: (LOCKSTEP_QOS, wire.type_name(Acted)),
+    RESEND: (LOCKSTEP_QOS, wire.type_name(Resend)),
+    READY: (LATCHED_ALL_QOS, wire.type_name(Ready)),
+    RUN_END: (LATCHED_ALL_QOS, wire.type_name(RunEnd)),
+    REPORTS: (LATCHED_ALL_QOS, wire.type_name(AgentReport)),
     RESULT: (RESULT_QOS, "std_msgs/msg/String"),
 }
+TICK_TYPE = wire.type_name(Tick)
 
 
 def protocol_topics(protocol: str) -> dict[str, tuple[QoSProfile, str]]:
-    """Topics only a run of the given protocol has (same QoS and type as the step messages)."""
-    return {channel_topic(c): (LOCKSTEP_QOS, "std_msgs/msg/String") for c in protocols.get(protocol).channels}
+    """The topics only a run of the given protocol has: one per message kind it broadcasts."""
+    return {message_topic(m): (LOCKSTEP_QOS, wire.type_name(m)) for m in protocols.get(protocol).messages}
 
 
 def scenario_fingerprint(scenario: Scenario) -> str:
     """Short hash of the scenario: the world refuses agents that loaded a different one."""
     return hashlib.sha256(dump_scenario(scenario).encode()).hexdigest()[:16]
-
-
-def to_string(msg) -> String:
-    return String(data=codec.encode(msg))
 
 
 class Throttle:
@@ -160,12 +161,13 @@ class Throttle:
         self.logger.warning(f"{text}{more}")
 
 
-def decode_or_warn(msg: String, topic: str, expected, throttle: Throttle):
-    """The decoded message, or None after a throttled warning naming the sender."""
+def from_ros_or_warn(msg: Any, topic: str, throttle: Throttle) -> Any:
+    """The message's dataclass (a Sample for a protocol message), or None after a throttled
+    warning naming the topic, the sender and the field."""
     try:
-        return codec.decode(msg.data, expected)
+        return wire.from_ros(msg)
     except MessageError as exc:
-        throttle.warn(topic, codec.sender_of(msg.data), str(exc))
+        throttle.warn(topic, wire.sender_of(msg), str(exc))
         return None
 
 

@@ -1,35 +1,6 @@
 #!/usr/bin/env bash
 # Start a run over DDS: one world node and N agent nodes, one process (PID) each.
-#
-#   bringup_scripts/ost_up.sh --agents N (--objects M --seed S | --scenario FILE)
-#       [--protocol NAME] [--ci K | --interval T] [--width W --height H --nmax X]
-#       [--mute-negotiation AGENT:STEP] [--respawn-world K]
-#       [--kill-agent AGENT:STEP]... [--failure-timeout SEC] [--partition equal|negotiated]
-#       [--coordination distributed|coordinator]
-#       [--hosts K [--loss PCT] [--discovery multicast|static|server]]
-#       [--domain-id D] [--run-dir DIR] [--json] [--no-skip] [--max-steps S]
-#       [--timeout SEC] [--background]
-#
-# Waits for discovery (the world starts once every agent has matched all its endpoints and said
-# so — counted, not slept), waits for the result, prints it (--json: the JSON of `ost sim --json`)
-# and tears everything down — also on Ctrl-C or when a process dies (naming it). Logs and PIDs go
-# to the run directory (default: a new /tmp/ost_run.XXXXXX). --background returns once the run
-# started; `bringup_scripts/ost_down.sh RUN_DIR` stops it. Default: a free ROS_DOMAIN_ID, and DDS
-# traffic on the loopback interface only (bringup_scripts/dds_env.sh). The world node checkpoints
-# its truth in the run directory; --respawn-world K restarts it from there if it dies (K times).
-# --hosts K (root): the processes are spread over K simulated hosts (network namespaces on a bridge,
-# bringup_scripts/sim_hosts.sh; world on host 0, agents round-robin), DDS over UDP between them;
-# --loss PCT drops that share of every packet each host sends; --discovery static/server blocks
-# multicast and discovers through ROS_STATIC_PEERS / a Fast DDS discovery server on host 0.
-# An agent process that dies mid-run is not the end of it: the world declares the robot failed
-# once it has shown no liveliness for twice --failure-timeout (default 1 s) and the survivors
-# re-coordinate (protocols that recover: `ost protocols list`; other runs end with the reason). --kill-agent AGENT:STEP makes that
-# agent SIGKILL itself on the tick of that step (fault injection; repeatable). --partition
-# negotiated: the robots' search areas are negotiated first (`ost negotiate partition`, by speed
-# and private forbidden zones); every process then loads that scenario. --coordination
-# coordinator: the lowest-id agent alone runs Algorithm Coordination and broadcasts the schedule.
-# --protocol: a registered protocol (`ost protocols list`; default ccp); what it cannot run
-# (an organisation, negotiated areas, a silenced negotiator) is refused before anything starts.
+# `ost_up.sh --help` prints the usage; docs/ros.md explains the run.
 set -uo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -38,11 +9,51 @@ bin="$venv/bin"
 me="ost_up"
 
 die() { echo "$me: error: $*" >&2; exit 2; }
+usage() {
+  cat <<'USAGE'
+usage: ost_up.sh --agents N (--objects M --seed S | --scenario FILE) [options]
+
+Start a run over DDS: one world node and N agent nodes, one process each. Waits for discovery
+(counted, not slept), waits for the result, prints it and tears everything down (also on Ctrl-C
+or when a process dies, naming it). Logs, PIDs and result.json go to the run directory.
+
+scenario:
+  --agents N                 team size (with --scenario: replaces the file's team)
+  --objects M --seed S       generate the paper's random scenario
+  --width W --height H --nmax X   its grid and largest group (defaults: ost generate's)
+  --scenario FILE            a scenario YAML (ost generate)
+  --partition equal|negotiated    search areas: equal, or negotiated first (by speed, zones)
+protocol:
+  --protocol NAME            a registered protocol (ost protocols list; default ccp)
+  --ci K | --interval T      coordination trigger (default --ci 1)
+  --coordination distributed|coordinator
+  --no-skip                  no event skipping: every step is a round trip
+  --max-steps S              step limit (default: the simulator's)
+ROS:
+  --namespace NS             the run's namespace (default ost: /ost/world, /ost/object_found, ...);
+                             two teams in two namespaces share a domain without interfering
+  --domain-id D              ROS_DOMAIN_ID (default: a free one in 10..99)
+run:
+  --run-dir DIR              logs, PIDs, result.json (default: a new /tmp/ost_run.XXXXXX)
+  --json                     print the result as `ost sim --json` does
+  --background               return once the run has started (exit 1 if it failed to start);
+                             the world stays up with the result on <ns>/result until
+                             `bringup_scripts/ost_down.sh DIR`
+  --timeout SEC              stop a run without a result after SEC seconds
+faults:
+  --kill-agent AGENT:STEP    that agent's process SIGKILLs itself at that step (repeatable)
+  --failure-timeout SEC      liveliness lease: a silent agent fails after 2 x SEC (default 1)
+  --mute-negotiation AGENT:STEP   that NCP negotiator stops answering from that step
+  --respawn-world K          restart a dead world node from its checkpoint (K times)
+  --hosts K [--loss PCT] [--discovery multicast|static|server]
+                             (root) spread the processes over K simulated hosts
+USAGE
+}
 say() { echo "$me: $*" >&2; }
 
 agents="" objects="" seed="" scenario="" protocol="ccp" ci="1" interval="" width="" height="" nmax=""
 mute="" respawn=0 hosts=0 loss=0 discovery="multicast" kills=() failure_timeout=1.0 partition=equal coordination=distributed
-domain="${ROS_DOMAIN_ID:-}" run_dir="" json=0 skip=true max_steps=0 timeout=0 background=0
+domain="${ROS_DOMAIN_ID:-}" run_dir="" json=0 skip=true max_steps=0 timeout=0 background=0 stay=0 ns="ost"
 need() { [ $# -ge 2 ] && [ -n "$2" ] || die "$1 needs a value"; }
 int() { [[ "$2" =~ ^[0-9]+$ ]] || die "$1: expected a non-negative integer, got '$2'"; }
 while [ $# -gt 0 ]; do
@@ -79,7 +90,10 @@ while [ $# -gt 0 ]; do
     --json) json=1; shift ;;
     --no-skip) skip=false; shift ;;
     --background) background=1; shift ;;
-    -h|--help) awk 'NR > 1 && !/^#/ {exit} NR > 1 {sub(/^# ?/, ""); print}' "$0"; exit 0 ;;
+    --stay) stay=1; shift ;;   # (internal: --background's supervisor) keep the world up after the run
+    --namespace) need "$@"; [[ "$2" =~ ^/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$ ]] \
+        || die "--namespace: '$2' is not a ROS namespace (letters, digits, _ and /)"; ns="${2#/}"; shift 2 ;;
+    -h|--help) usage; exit 0 ;;
     *) die "unknown argument '$1' (see --help)" ;;
   esac
 done
@@ -119,7 +133,8 @@ if [ "$background" = 1 ]; then
   args=()
   for a in "$@"; do args+=("$a"); done
   # Re-run this script in the background with the same options, supervising the run.
-  fwd=(--run-dir "$run_dir" --protocol "$protocol" --ci "$ci" --max-steps "$max_steps" --timeout "$timeout")
+  fwd=(--run-dir "$run_dir" --protocol "$protocol" --ci "$ci" --max-steps "$max_steps" --timeout "$timeout"
+       --namespace "$ns" --stay)
   [ -n "$agents" ] && fwd+=(--agents "$agents")
   [ -n "$scenario" ] && fwd+=(--scenario "$scenario")
   [ -n "$objects" ] && fwd+=(--objects "$objects" --seed "$seed")
@@ -136,13 +151,26 @@ if [ "$background" = 1 ]; then
   [ "$skip" = false ] && fwd+=(--no-skip)
   [ "$json" = 1 ] && fwd+=(--json)
   nohup "$0" "${fwd[@]}" > "$run_dir/ost_up.out" 2> "$run_dir/ost_up.log" < /dev/null &
-  echo $! > "$run_dir/ost_up.pid"
-  for _ in $(seq 1 600); do   # until the run has started (or failed)
-    grep -q "started\|error\|died" "$run_dir/ost_up.log" 2>/dev/null && break
+  sup=$!
+  echo $sup > "$run_dir/ost_up.pid"
+  # Until the world has started stepping (every agent matched), or the supervisor gave up.
+  started=0
+  for _ in $(seq 1 1200); do
+    grep -q "discovery complete" "$run_dir/ost_up.log" 2>/dev/null && { started=1; break; }
+    kill -0 "$sup" 2>/dev/null || break
     sleep 0.1
   done
   cat "$run_dir/ost_up.log" >&2
   echo "$run_dir"
+  if [ "$started" = 0 ]; then
+    if kill -0 "$sup" 2>/dev/null; then
+      say "the run did not start within 120 s; stopping it"
+      bash "$repo/bringup_scripts/ost_down.sh" "$run_dir" >/dev/null 2>&1
+    else
+      say "the run failed to start (see $run_dir/ost_up.log)"
+    fi
+    exit 1
+  fi
   exit 0
 fi
 
@@ -239,6 +267,7 @@ cat > "$run_dir/world_params.yaml" <<EOF
     event_skipping: $skip
     max_steps: $max_steps
     failure_timeout: $failure_timeout
+    exit_when_done: $([ "$stay" = 1 ] && echo false || echo true)
 EOF
 
 # ------------------------------------------------------------------ processes and teardown
@@ -281,7 +310,8 @@ if [ "$discovery" = server ]; then
     "$bin/fast-discovery-server" -i 0 -l "${ips[0]}" -p 11811 > "$run_dir/discovery_server.log" 2>&1 &
   pids+=($!); names[$!]="discovery_server"; echo $! > "$run_dir/discovery_server.pid"
 fi
-launch 0 "$bin/world_node" --ros-args --params-file "$run_dir/world_params.yaml" > "$run_dir/world.log" 2>&1 &
+nsarg=(-r "__ns:=/$ns")
+launch 0 "$bin/world_node" --ros-args --params-file "$run_dir/world_params.yaml" "${nsarg[@]}" > "$run_dir/world.log" 2>&1 &
 world_pid=$!; pids+=($world_pid); names[$world_pid]="world"; echo $world_pid > "$run_dir/world.pid"
 slot=0
 for i in $ids; do
@@ -291,14 +321,14 @@ for i in $ids; do
   for kv in "${kills[@]}"; do   # fault injection: this agent's process dies at a step
     [ "${kv%%:*}" = "$i" ] && extra+=(-p "die_at_step:=${kv##*:}")
   done
-  launch "$slot" "$bin/agent_node" --ros-args --params-file "$run_dir/params.yaml" -p "agent_id:=$i" "${extra[@]}" \
+  launch "$slot" "$bin/agent_node" --ros-args --params-file "$run_dir/params.yaml" -p "agent_id:=$i" "${extra[@]}" "${nsarg[@]}" \
     > "$run_dir/agent_$i.log" 2>&1 &
   pids+=($!); names[$!]="agent_$i"; echo $! > "$run_dir/agent_$i.pid"
 done
 if [ -n "$netns" ]; then
   say "started world + $n agents on $hosts simulated hosts (${ips[*]}; loss $loss %, discovery $discovery; ROS_DOMAIN_ID=$ROS_DOMAIN_ID, run dir $run_dir)"
 else
-  say "started world + $n agents (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, run dir $run_dir)"
+  say "started world + $n agents (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, namespace /$ns, run dir $run_dir)"
 fi
 
 started=0
@@ -307,7 +337,7 @@ while :; do
     started=1
     say "discovery complete: $n agents matched after $(elapsed_ms) ms"
   fi
-  if [ -f "$run_dir/result.json" ] && ! kill -0 "$world_pid" 2>/dev/null; then
+  if [ -f "$run_dir/result.json" ] && { [ "$stay" = 1 ] || ! kill -0 "$world_pid" 2>/dev/null; }; then
     break
   fi
   for k in "${!pids[@]}"; do
@@ -317,7 +347,7 @@ while :; do
       if [ "${names[$p]}" = world ] && [ ! -f "$run_dir/result.json" ] && [ "$respawn" -gt 0 ]; then
         respawn=$(( respawn - 1 ))
         say "world (pid $p) died with exit code $rc; restarting it from its checkpoint ($respawn restarts left)"
-        launch 0 "$bin/world_node" --ros-args --params-file "$run_dir/world_params.yaml" -p resume:=true \
+        launch 0 "$bin/world_node" --ros-args --params-file "$run_dir/world_params.yaml" "${nsarg[@]}" -p resume:=true \
           >> "$run_dir/world.log" 2>&1 &
         world_pid=$!; pids[$k]=$world_pid; names[$world_pid]="world"; echo $world_pid > "$run_dir/world.pid"
         continue
@@ -343,10 +373,15 @@ while :; do
   fi
   sleep 0.1
 done
-teardown
+[ "$stay" = 1 ] || teardown
 if [ "$json" = 1 ]; then
   "$bin/python" -m world_node.report "$run_dir/result.json" --json
 else
   "$bin/python" -m world_node.report "$run_dir/result.json"
   say "logs and result in $run_dir"
+fi
+if [ "$stay" = 1 ]; then   # --background: the result stays on <ns>/result until ost_down.sh
+  say "run over; the world stays up with the result on /$ns/result until: bringup_scripts/ost_down.sh $run_dir"
+  while kill -0 "$world_pid" 2>/dev/null; do sleep 0.5; done
+  teardown
 fi

@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
-# Idempotent bootstrap: a CPython 3.12 venv with the pinned ROS 2 Jazzy wheels and this project.
+# Idempotent bootstrap: a CPython 3.12 venv with the pinned ROS 2 Jazzy wheels and this project,
+# the ost_msgs interfaces built into it (bringup_scripts/build_msgs.sh), and the ament layout that
+# lets `ros2 run ost_ros ...` / `ros2 launch ost_ros team.launch.py` find the nodes.
 #
 #   bringup_scripts/setup.sh          # creates/updates the venv (default: <repo>/.venv)
 #   OST_VENV=/path/venv  OST_PYTHON=/path/python3.12  bringup_scripts/setup.sh
 #
-# A second run with nothing changed returns in well under a second (a stamp file records the
-# hash of the lock file and the packaging files). Prints the venv path on its last line.
+# A second run with nothing changed returns in well under a second (stamp files record the hash
+# of the lock file and the packaging files, and of the interface files). Prints the venv path on
+# its last line.
 set -euo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -48,9 +51,31 @@ stamp_of() {
   cat "$lock" "$repo/setup.py" "$repo/setup.cfg" "$repo/package.xml" | sha256sum | cut -d' ' -f1
 }
 
+# The ROS side of an editable install (pip installs no data_files for it): the ament index
+# marker, package.xml and launch files under VENV/share, the node executables under
+# VENV/lib/ost_ros — what `ros2 pkg executables`, `ros2 run` and `ros2 launch` look for with
+# AMENT_PREFIX_PATH=VENV. Symlinks into the repository, like the editable install itself.
+ament_register() {
+  mkdir -p "$venv/share/ament_index/resource_index/packages" "$venv/share/ost_ros" "$venv/lib/ost_ros"
+  : > "$venv/share/ament_index/resource_index/packages/ost_ros"
+  ln -sfn "$repo/package.xml" "$venv/share/ost_ros/package.xml"
+  # a directory of links, not a link: ros2 launch walks share/ost_ros without following links
+  [ -L "$venv/share/ost_ros/launch" ] && rm "$venv/share/ost_ros/launch"
+  mkdir -p "$venv/share/ost_ros/launch"
+  find "$venv/share/ost_ros/launch" -maxdepth 1 -type l -delete
+  for f in "$repo"/launch/*.launch.py; do ln -sfn "$f" "$venv/share/ost_ros/launch/"; done
+  for exe in world_node agent_node; do ln -sfn "$venv/bin/$exe" "$venv/lib/ost_ros/$exe"; done
+}
+
+finish() {  # every run: the interfaces (rebuilt only when a .msg changed) and the ament layout
+  bash "$repo/bringup_scripts/build_msgs.sh" "$venv"
+  ament_register
+}
+
 want="$(stamp_of)"
 if [ -x "$venv/bin/python" ] && [ -f "$venv/.ost-stamp" ] && [ "$(cat "$venv/.ost-stamp")" = "$want" ] \
    && is_py312 "$venv/bin/python"; then
+  finish
   say "venv up to date: $venv"
   echo "$venv"
   exit 0
@@ -74,6 +99,7 @@ pip_install() {  # pip's chatter goes to the log; shown only when pip fails
 pip_install --upgrade "pip==26.3"
 pip_install -r "$lock"
 pip_install --no-deps --no-build-isolation -e "$repo"
+finish
 echo "$want" > "$venv/.ost-stamp"
 say "ready: $venv (run: $venv/bin/ost --help)"
 echo "$venv"

@@ -5,11 +5,11 @@
   previous lockstep step (the count the agent's barrier waits for);
 - :class:`Acted` (agent → world): the action of step t, how many protocol messages the agent
   broadcast in step t, and (event skipping) its plan for the following quiet steps;
-- :class:`StepMessages` (agent → all agents): the sender's protocol messages of step t, sent only
-  when there are any (a protocol's own channel, e.g. NCP's moves on /ost/negotiation, carries a
-  separate part). An agent runs its comm module for step t once it holds the batch of every
-  sender the world listed — a counting barrier whose count the world supplies, so quiet steps
-  cost no agent-to-agent traffic;
+- :class:`Sample` (agent → all agents, on the topic of the message's kind): one protocol message of
+  step t with its place ``seq`` among the sender's messages of the step. An agent runs its comm
+  module for step t once it holds every sample of every sender the world listed, as many as the
+  world counted — a counting barrier whose counts the world supplies, so quiet steps cost no
+  agent-to-agent traffic;
 - :class:`Resend`: recovery — an agent whose tick waited too long for some peers' batches asks
   them to publish those again (the world likewise re-sends a tick whose action does not come);
 - :class:`RunEnd`: the world's clock stopped (every object delivered and every agent home, or
@@ -17,7 +17,8 @@
   schedule they hold, predicted makespan, coordinations, warnings), from which the world builds
   the same result as the in-process simulator.
 
-Like :mod:`ost_msgs_py.messages`: frozen dataclasses, a ``TYPE`` tag and a ``version`` field.
+Like :mod:`ost_msgs_py.messages`: frozen dataclasses with a ``TYPE`` tag; on the wire each is the
+``ost_msgs`` interface of the same name (:mod:`ost_msgs_py.wire`).
 Every message of a run carries the world's ``run`` id (random per run, kept across a world
 restart): agents learn it from their first tick, and anything stamped with another run's id — a
 stray publisher, a leftover node of an earlier run — is dropped with a warning.
@@ -28,17 +29,21 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from ost_msgs_py.messages import Action, ActionKind, AgentLost, Cell, Observation, ScheduledObject
+from ost_msgs_py.messages import (
+    Action,
+    ActionKind,
+    AgentLost,
+    AgentMessage,
+    Cell,
+    Observation,
+    ScheduledObject,
+)
 
 RUNTIME_VERSION = 1
 
 
 class ProtocolViolation(ValueError):
     """A well-formed message that does not fit the run (unknown sender, wrong step, duplicate)."""
-
-
-class AnyMessage:
-    """Type marker for a field holding any registered message (encoded with its ``type`` tag)."""
 
 
 @dataclass(frozen=True)
@@ -72,6 +77,7 @@ class Tick:
     last: int
     observation: Observation
     peers: tuple[int, ...] = ()
+    counts: tuple[int, ...] = ()  # how many messages each of ``peers`` broadcast in step ``last``
     run: str = ""  # the world's run id (strays of other runs are dropped)
     failed: tuple[AgentLost, ...] = ()  # every failure so far (the world's notices)
     version: int = RUNTIME_VERSION
@@ -112,22 +118,19 @@ class Acted:
 
 
 @dataclass(frozen=True)
-class StepMessages:
-    """The sender's protocol messages of step ``t``, in the order its outbox produced them.
+class Sample:
+    """One protocol message as it travels on its kind's topic (``/ost/<message TYPE>``).
 
-    ``channel``: ``step`` (on /ost/step_messages) or a channel the protocol gives some of its
-    messages (NCP: ``negotiation``, on /ost/negotiation). A step whose messages go to several
-    channels is sent in as many parts (``parts``); a receiver waits for every part.
+    ``step``: the step the sender broadcast it in (a message's own ``t`` can be earlier: a
+    coordination's selections); ``seq``: its place among everything the sender broadcast in that
+    step (all kinds): the world's :class:`Tick` says how many that was, so a receiver knows when
+    it has them all and puts them back in the sender's outbox order. ``run``: the world's run id.
     """
 
-    TYPE: ClassVar[str] = "step_messages"
-    sender: int
-    t: int
-    messages: tuple[AnyMessage, ...] = ()
-    channel: str = "step"
-    parts: int = 1
-    run: str = ""  # the world's run id (strays of other runs are dropped)
-    version: int = RUNTIME_VERSION
+    message: AgentMessage
+    step: int
+    seq: int
+    run: str = ""
 
 
 @dataclass(frozen=True)
@@ -154,6 +157,7 @@ class RunEnd:
     last: int
     completed: bool
     peers: tuple[int, ...] = ()
+    counts: tuple[int, ...] = ()  # as in Tick
     run: str = ""  # the world's run id (strays of other runs are dropped)
     failed: tuple[AgentLost, ...] = ()  # as in Tick
     version: int = RUNTIME_VERSION
@@ -183,4 +187,4 @@ class AgentReport:
     version: int = RUNTIME_VERSION
 
 
-RUNTIME_MESSAGES: tuple[type, ...] = (Ready, Tick, Acted, StepMessages, Resend, RunEnd, AgentReport)
+RUNTIME_MESSAGES: tuple[type, ...] = (Ready, Tick, Acted, Resend, RunEnd, AgentReport)

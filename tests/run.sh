@@ -16,6 +16,9 @@ if [ "$(id -u)" = 0 ] && ! command -v nft >/dev/null && command -v apt-get >/dev
     || { apt-get update -q >/dev/null 2>&1 && apt-get install -y -q nftables >/dev/null 2>&1; }) \
     || echo "tests/run.sh: could not install nftables; the loss and multicast-blocking tests will skip" >&2
 fi
+# The real ros2 CLI and launch, for tests/ros/test_ros2cli.py (test tooling from ../shared/ros2,
+# not part of the product; without those sources the tests skip, saying why).
+bash "$repo/tests/ros2_tools.sh" "$venv"
 # Lint, format and types first (seconds): the same checks for everyone (pyproject.toml).
 if [ "${OST_LINT:-1}" = 1 ]; then
   "$venv/bin/ruff" check --quiet . && "$venv/bin/ruff" format --check --quiet . && "$venv/bin/mypy" \

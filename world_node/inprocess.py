@@ -1,5 +1,5 @@
 """The lockstep runtimes wired in one process, without DDS: the world's runtime and every agent's,
-each message through the codec exactly as the nodes exchange it. The same run as over DDS (and as
+each message converted to its ``ost_msgs`` interface and back exactly as the nodes exchange it. The same run as over DDS (and as
 ``ost sim``), with the transport's figures (round trips, steps skipped on the agents' plans) —
 for tests, benchmarks, and for checking a new protocol's planner before starting processes.
 """
@@ -9,8 +9,8 @@ from __future__ import annotations
 from typing import Any
 
 from agent_node.runtime import AgentRuntime
-from ost_msgs_py import codec
-from ost_msgs_py.runtime import Acted, AgentReport, RunEnd, StepMessages
+from ost_msgs_py import wire as ros_wire
+from ost_msgs_py.runtime import Acted, AgentReport, RunEnd, Sample
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Scenario
 from ost_ros.protocols import make_agents
@@ -19,8 +19,8 @@ from world_node.runtime import WorldRuntime
 
 
 def wire(msg: Any) -> Any:
-    """A message as a receiver gets it: encoded and decoded."""
-    return codec.decode(codec.encode(msg))
+    """A message as a receiver gets it: as its ROS interface and back."""
+    return ros_wire.from_ros(ros_wire.to_ros(msg))
 
 
 def run_lockstep(
@@ -51,9 +51,9 @@ def run_lockstep(
             else:
                 r.accept_tick(wire(next(k for k in nxt if k.observation.agent == r.me)))
         out = [m for r in rts.values() for m in r.progress()]
-        for b in (m for m in out if isinstance(m, StepMessages)):
+        for b in (m for m in out if isinstance(m, Sample)):
             for r in rts.values():
-                r.accept_batch(wire(b))
+                r.accept_sample(wire(b))
         for m in out:
             if isinstance(m, Acted):
                 world.accept_acted(wire(m))

@@ -2,8 +2,8 @@
 
 Step t: send every agent its :class:`Tick` → collect one :class:`Acted` per agent → apply all
 actions at once (``World.apply``, which validates and rejects) → t+1. The world counts who
-broadcast protocol messages in step t and passes that list on in the next ticks: the agents'
-counting barrier.
+broadcast how many protocol messages in step t and passes those counts on in the next ticks: the
+agents' counting barrier.
 
 Event skipping: if nobody broadcast in step t, every agent's plan covers step t+1 and the world's
 observation of each agent is what its plan expects, the world applies the planned actions
@@ -81,7 +81,7 @@ class WorldRuntime:
             )
         except protocols.ProtocolError as exc:
             self.aborted = f"agent {agent} failed in step {self.world.t}; {exc}"
-            self.ended = RunEnd(self.world.t, self.world.t - 1, False, (), self.run, self._failed())
+            self.ended = RunEnd(self.world.t, self.world.t - 1, False, (), (), self.run, self._failed())
             return self.ended
         if self.max_steps is None:  # survivors may need longer than the fault-free bound
             self.limit = max(self.limit, step_limit(self.scenario, len(self.failed)))
@@ -93,7 +93,7 @@ class WorldRuntime:
     # ------------------------------------------------------------------ stepping
 
     def start(self) -> list[Tick] | RunEnd:
-        return self._next(last=-1, peers=())
+        return self._next(last=-1, sent={})
 
     def accept_acted(self, acted: Acted) -> None:
         a = acted.action
@@ -133,14 +133,14 @@ class WorldRuntime:
         acted = [self._acted[i] for i in live]
         self._acted = {}
         last = self.world.t
-        peers = tuple(x.action.agent for x in acted if x.sent > 0)
-        self.messages += sum(x.sent for x in acted)
+        sent = {x.action.agent: x.sent for x in acted if x.sent > 0}  # the agents' barrier counts
+        self.messages += sum(sent.values())
         self.world.apply([x.action for x in acted])
         self.round_trips += 1
         news = last in self.failed.values()  # a failure notice: the agents must hear it
-        if self.skipping and not peers and not news and acted:
+        if self.skipping and not sent and not news and acted:
             self._skip(live, [x.plan for x in acted])
-        return self._next(last, peers)
+        return self._next(last, sent)
 
     def _skip(self, live: tuple[int, ...], plans: list[tuple[PlanStep, ...]]) -> None:
         for k in range(min(len(p) for p in plans)):
@@ -156,13 +156,14 @@ class WorldRuntime:
             self.world.apply(actions)
             self.skipped += 1
 
-    def _next(self, last: int, peers: tuple[int, ...]) -> list[Tick] | RunEnd:
+    def _next(self, last: int, sent: dict[int, int]) -> list[Tick] | RunEnd:
         w = self.world
         failed = self._failed()
+        peers, counts = tuple(sent), tuple(sent.values())
         if w.done or w.t >= self.limit or not self.live:
-            self.ended = RunEnd(w.t, last, w.done, peers, self.run, failed)
+            self.ended = RunEnd(w.t, last, w.done, peers, counts, self.run, failed)
             return self.ended
-        return [Tick(w.t, last, w.observe(i), peers, self.run, failed) for i in self.live]
+        return [Tick(w.t, last, w.observe(i), peers, counts, self.run, failed) for i in self.live]
 
     # ------------------------------------------------------------------ result
 

@@ -2,19 +2,23 @@
 
     world_node --ros-args -p scenario:=run.yaml -p result_file:=/tmp/result.json
 
-Parameters: ``scenario`` (YAML), ``agents`` (team size override, 0 = the file's), ``max_steps``
-(0 = the simulator's step limit), ``result_file`` (JSON, same as ``ost sim --json``; '' = none),
-``event_skipping`` (execute agents' plans for quiet steps), ``marker_every`` (publish
-/ost/markers every k ticks; 0 = never), ``exit_when_done`` (leave once the agents are gone),
-``checkpoint_file`` (the truth is written there before every step is published; '' = none) and
-``resume`` (start from that checkpoint: a restarted world node continues the run — it publishes
-the step it was at again, and agents that had already answered answer again) and
-``failure_timeout`` (s, the liveliness lease the world requests of every agent; an agent whose
-liveliness is lost and does not come back — and that sends nothing — for another such time is
-declared failed in the current step and the survivors re-coordinate; 0 = off).
+Parameters (read-only, with descriptors: ``ros2 param describe /ost/world scenario``):
+``scenario`` (YAML), ``agents`` (team size override, 0 = the file's), ``max_steps`` (0 = the
+simulator's step limit), ``result_file`` (JSON, same as ``ost sim --json``; '' = none),
+``event_skipping`` (execute agents' plans for quiet steps), ``marker_every`` (publish markers
+every k ticks; 0 = never), ``exit_when_done`` (leave once the agents are gone after the result,
+or after ``linger`` s; false: stay, publishing the result, until stopped), ``checkpoint_file``
+(the truth is written there before every step is published; '' = none), ``resume`` (start from
+that checkpoint: a restarted world node continues the run — it publishes the step it was at
+again, and agents that had already answered answer again) and ``failure_timeout`` (s, the
+liveliness lease the world requests of every agent; an agent whose liveliness is lost and does
+not come back — and that sends nothing — for another such time is declared failed in the
+current step and the survivors re-coordinate; 0 = off).
 
-Publishes /clock (sim time: step t = t seconds), /ost/markers, each agent's tick, /ost/run_end and
-the result on /ost/result (transient local). Invalid or out-of-turn messages are dropped with a
+Topics are relative to the node's namespace (default ``/ost``): publishes ``clock`` (sim time:
+step t = t seconds), ``markers``, each agent's ``agent_<i>/tick`` (``ost_msgs/msg/Tick``),
+``run_end`` and the result on ``result`` (JSON in ``std_msgs/msg/String``, transient local: it
+stays readable while the world runs). Invalid or out-of-turn messages are dropped with a
 throttled warning naming the sender; illegal actions are rejected by ``World.apply`` with a
 reason that goes into the result.
 """
@@ -41,49 +45,64 @@ from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
 from agent_node import transport as tp
-from ost_msgs_py.runtime import Acted, AgentReport, Ready, RunEnd
+from agent_node.params import declare as declare_param
+from ost_msgs_py import wire
+from ost_msgs_py.runtime import Acted, AgentReport, Ready, RunEnd, Tick
 from ost_ros.bounds import lower_bound
 from ost_ros.scenario import ScenarioError, load_scenario, with_team
 from world_node.markers import world_markers
 from world_node.runtime import ProtocolViolation, WorldRuntime
 
-# After the result is out, wait this long at most for the agents to leave before exiting.
-LINGER_S = 10.0
 # A step taking longer than this is reported (who has not acted yet).
 STALL_S = 5.0
 
 
 class WorldNode(Node):
+    """``<ns>/world`` (default namespace ``/ost``): the grid truth, stepping the agents."""
+
+    PARAMETERS = (
+        ("scenario", "", "scenario YAML file (ost generate); every node of a run loads the same", None, None),
+        ("agents", 0, "team size override (0: the scenario's team)", 0, 100_000),
+        ("max_steps", 0, "step limit (0: the simulator's)", 0, None),
+        ("result_file", "", "write the result JSON (as ost sim --json) there ('': none)", None, None),
+        (
+            "event_skipping",
+            True,
+            "execute the agents' plans for quiet steps without a round trip",
+            None,
+            None,
+        ),
+        ("marker_every", 1, "publish markers every k ticks (0: never)", 0, None),
+        (
+            "exit_when_done",
+            True,
+            "leave once the agents are gone after the result (false: stay until stopped)",
+            None,
+            None,
+        ),
+        (
+            "linger",
+            10.0,
+            "with exit_when_done: seconds to wait at most for the agents to leave",
+            0.0,
+            86_400.0,
+        ),
+        ("checkpoint_file", "", "write the truth there before every step ('': none)", None, None),
+        ("resume", False, "start from checkpoint_file (a restarted world continues the run)", None, None),
+        (
+            "failure_timeout",
+            tp.FAILURE_TIMEOUT_S,
+            "liveliness lease requested of every agent (s; 0: off)",
+            0.0,
+            3600.0,
+        ),
+    )
+
     def __init__(self):
         super().__init__(tp.WORLD_NODE, namespace=tp.NAMESPACE)
-        for name, default in (
-            ("scenario", ""),
-            ("agents", 0),
-            ("max_steps", 0),
-            ("result_file", ""),
-            ("event_skipping", True),
-            ("marker_every", 1),
-            ("exit_when_done", True),
-            ("checkpoint_file", ""),
-            ("resume", False),
-            ("failure_timeout", tp.FAILURE_TIMEOUT_S),
-        ):
-            self.declare_parameter(name, default)
-        p = {
-            n: self.get_parameter(n).value
-            for n in (
-                "scenario",
-                "agents",
-                "max_steps",
-                "result_file",
-                "event_skipping",
-                "marker_every",
-                "exit_when_done",
-                "checkpoint_file",
-                "resume",
-                "failure_timeout",
-            )
-        }
+        for name, default, description, lo, hi in self.PARAMETERS:
+            declare_param(self, name, default, description, lo, hi)
+        p = {name: self.get_parameter(name).value for name, *_ in self.PARAMETERS}
         if not p["scenario"]:
             raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
         for name in ("agents", "max_steps", "marker_every", "failure_timeout"):
@@ -104,6 +123,7 @@ class WorldNode(Node):
         self.result_file = p["result_file"]
         self.marker_every = p["marker_every"]
         self.exit_when_done = p["exit_when_done"]
+        self.linger = p["linger"]
         self.ids = self.rt.ids
         self.throttle = tp.Throttle(self.get_logger())
         self.ready: dict[int, Ready] = {}
@@ -113,7 +133,7 @@ class WorldNode(Node):
         self.ticks_sent = 0
         self.t_start = 0.0
         self.last_progress = self.stall_since = time.monotonic()
-        self.last_sent: list[String] = []  # what the current step published, for resend()
+        self.last_sent: list = []  # what the current step published (ROS messages), for resend()
         self.last_agents: list[int] = []  # ... to whom (the survivors)
         self.checkpoint_file = p["checkpoint_file"]
         self.resumed = False
@@ -123,12 +143,16 @@ class WorldNode(Node):
         q = tp.LOCKSTEP_QOS
         self.pub_clock = self.create_publisher(Clock, tp.CLOCK, tp.LATEST_QOS)
         self.pub_markers = self.create_publisher(MarkerArray, tp.MARKERS, tp.LATEST_QOS)
-        self.pub_tick = {i: self.create_publisher(String, tp.tick_topic(i), q) for i in self.ids}
-        self.pub_end = self.create_publisher(String, tp.RUN_END, tp.LATCHED_ALL_QOS)
+        self.pub_tick = {i: self.create_publisher(wire.ros_type(Tick), tp.tick_topic(i), q) for i in self.ids}
+        self.pub_end = self.create_publisher(wire.ros_type(RunEnd), tp.RUN_END, tp.LATCHED_ALL_QOS)
         self.pub_result = self.create_publisher(String, tp.RESULT, tp.RESULT_QOS)
-        self.sub_acted = self.create_subscription(String, tp.ACTED, self.on_acted, q)
-        self.sub_ready = self.create_subscription(String, tp.READY, self.on_ready, tp.LATCHED_ALL_QOS)
-        self.sub_report = self.create_subscription(String, tp.REPORTS, self.on_report, tp.LATCHED_ALL_QOS)
+        self.sub_acted = self.create_subscription(wire.ros_type(Acted), tp.ACTED, self.on_acted, q)
+        self.sub_ready = self.create_subscription(
+            wire.ros_type(Ready), tp.READY, self.on_ready, tp.LATCHED_ALL_QOS
+        )
+        self.sub_report = self.create_subscription(
+            wire.ros_type(AgentReport), tp.REPORTS, self.on_report, tp.LATCHED_ALL_QOS
+        )
         # One liveliness reader per robot: a killed agent process is reported within the lease.
         self.sub_alive = {}
         self.alive_seen: set[int] = set()  # agents whose liveliness the world has seen
@@ -164,7 +188,7 @@ class WorldNode(Node):
             "fingerprint": self.fingerprint,
             "rt": self.rt,
             "ticks_sent": self.ticks_sent,
-            "last_sent": [m.data for m in self.last_sent],
+            "last_sent": [wire.from_ros(m) for m in self.last_sent],
             "last_agents": self.last_agents,
         }
         tmp = f"{self.checkpoint_file}.tmp"
@@ -195,21 +219,21 @@ class WorldNode(Node):
             )
         self.rt = state["rt"]
         self.ticks_sent = state["ticks_sent"]
-        self.last_sent = [String(data=d) for d in state["last_sent"]]
+        self.last_sent = [wire.to_ros(m) for m in state["last_sent"]]
         self.last_agents = list(state.get("last_agents", self.rt.live))
         self.resumed = True
 
     # ------------------------------------------------------------------ start
 
-    def on_ready(self, msg: String) -> None:
-        r = tp.decode_or_warn(msg, tp.READY, Ready, self.throttle)
+    def on_ready(self, msg) -> None:
+        r = tp.from_ros_or_warn(msg, self.sub_ready.topic_name, self.throttle)
         if r is None:
             return
         if r.agent not in self.ids:
-            self.throttle.warn(tp.READY, f"agent {r.agent}", "not in the scenario's team")
+            self.throttle.warn(self.sub_ready.topic_name, f"agent {r.agent}", "not in the scenario's team")
         elif r.scenario != self.fingerprint:
             self.throttle.warn(
-                tp.READY,
+                self.sub_ready.topic_name,
                 f"agent {r.agent}",
                 f"loaded scenario {r.scenario}, the world runs {self.fingerprint}",
             )
@@ -242,7 +266,7 @@ class WorldNode(Node):
             return
         protocols = {r.protocol for r in self.ready.values()}
         if len(protocols) > 1:
-            self.throttle.warn(tp.READY, "agents", f"mixed protocols {sorted(protocols)}")
+            self.throttle.warn(self.sub_ready.topic_name, "agents", f"mixed protocols {sorted(protocols)}")
         self.rt.protocol = min(protocols)  # what a failure can be recovered by
         self.rt.organisation = min(r.organisation for r in self.ready.values())
         self.started = True
@@ -259,7 +283,7 @@ class WorldNode(Node):
             # Leave once every agent is gone (it has read the result), or after a while.
             # (a failed agent's endpoint stays in the graph until its participant lease ends)
             gone = self.sub_acted.get_publisher_count() <= len(self.rt.failed)
-            if self.exit_when_done and (gone or now - self.result_at > LINGER_S):
+            if self.exit_when_done and (gone or now - self.result_at > self.linger):
                 self.done = True
             return
         if self.suspects:
@@ -285,14 +309,14 @@ class WorldNode(Node):
         t = self.rt.world.t
         self.publish_state(t)
         if isinstance(nxt, RunEnd):
-            self.last_sent = [tp.to_string(nxt)]
+            self.last_sent = [wire.to_ros(nxt)]
             self.save_checkpoint()
             self.pub_end.publish(self.last_sent[0])
             self.get_logger().info(
                 f"run ended at step {nxt.steps} (completed: {nxt.completed}); collecting reports"
             )
             return
-        self.last_sent = [tp.to_string(tick) for tick in nxt]
+        self.last_sent = [wire.to_ros(tick) for tick in nxt]
         self.last_agents = [tick.observation.agent for tick in nxt]
         self.ticks_sent += 1
         self.save_checkpoint()  # before publishing: a published step is always recoverable
@@ -318,23 +342,27 @@ class WorldNode(Node):
         if self.marker_every and (self.ticks_sent % self.marker_every == 0 or self.rt.ended):
             self.pub_markers.publish(world_markers(self.rt.world, stamp))
 
-    def on_acted(self, msg: String) -> None:
-        a = tp.decode_or_warn(msg, tp.ACTED, Acted, self.throttle)
+    def on_acted(self, msg) -> None:
+        a = tp.from_ros_or_warn(msg, self.sub_acted.topic_name, self.throttle)
         if a is None:
             return
         if a.run != self.rt.run:  # another run's (a stray): say so whether or not we started
             self.throttle.warn(
-                tp.ACTED, f"agent {a.action.agent}", f"action of run {a.run!r}, this is run {self.rt.run!r}"
+                self.sub_acted.topic_name,
+                f"agent {a.action.agent}",
+                f"action of run {a.run!r}, this is run {self.rt.run!r}",
             )
             return
         if not self.started:
-            self.throttle.warn(tp.ACTED, f"agent {a.action.agent}", "action before the run started")
+            self.throttle.warn(
+                self.sub_acted.topic_name, f"agent {a.action.agent}", "action before the run started"
+            )
             return
         self.heard_from(a.action.agent)
         try:
             self.rt.accept_acted(a)
         except ProtocolViolation as exc:
-            self.throttle.warn(tp.ACTED, f"agent {a.action.agent}", str(exc))
+            self.throttle.warn(self.sub_acted.topic_name, f"agent {a.action.agent}", str(exc))
             return
         if self.rt.step_complete:
             self.send(self.rt.advance())
@@ -397,15 +425,15 @@ class WorldNode(Node):
 
     # ------------------------------------------------------------------ end
 
-    def on_report(self, msg: String) -> None:
-        r = tp.decode_or_warn(msg, tp.REPORTS, AgentReport, self.throttle)
+    def on_report(self, msg) -> None:
+        r = tp.from_ros_or_warn(msg, self.sub_report.topic_name, self.throttle)
         if r is None:
             return
         self.heard_from(r.agent)
         try:
             self.rt.accept_report(r)
         except ProtocolViolation as exc:
-            self.throttle.warn(tp.REPORTS, f"agent {r.agent}", str(exc))
+            self.throttle.warn(self.sub_report.topic_name, f"agent {r.agent}", str(exc))
             return
         if not self.rt.missing_reports and self.result_at is None:
             self.finish()

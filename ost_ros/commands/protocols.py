@@ -39,7 +39,7 @@ def describe(spec: protocols.ProtocolSpec) -> dict:
         "capabilities": asdict(spec.capabilities),
         "states": list(spec.states),
         "messages": [m.__name__ for m in spec.messages],
-        "channels": {c: [m.__name__ for m in ms] for c, ms in spec.channels.items()},
+        "topics": [getattr(m, "TYPE") for m in spec.messages],  # noqa: B009 - relative: /ost/<kind>
         "options": {o.name: protocols.option_default(spec, o) for o in spec.options},
     }
 
@@ -57,10 +57,7 @@ def cmd_list(args: argparse.Namespace) -> int:
         can = [k.replace("_", " ") for k, v in caps.items() if v is True]
         print(f"{r['name']}  {r['title']}")
         print(f"     organisations: {', '.join(caps['organisations'])}; also: {', '.join(can) or '-'}")
-        print(
-            f"     messages: {', '.join(r['messages'])}"
-            + "".join(f"; /ost/{c}: {', '.join(ms)}" for c, ms in r["channels"].items())
-        )
+        print(f"     messages (topic /ost/<kind> each): {', '.join(r['topics'])}")
         if r["options"]:
             print("     options: " + ", ".join(f"{k} (default {v})" for k, v in r["options"].items()))
     return 0

@@ -19,7 +19,7 @@ what agents must agree on).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 from ost_msgs_py.messages import Action, AgentMessage, ObjectInfo, Observation
@@ -136,13 +136,11 @@ class ProtocolSpec:
     label: str  # a few words: "cost-balanced"
     title: str  # one line, for --help and listings
     make_agent: Callable[[int, TeamInfo, CoordinationPolicy, Any], ProtocolAgent]
-    messages: tuple[type, ...]  # the agent messages it broadcasts
+    messages: tuple[type, ...]  # the agent messages it broadcasts (over DDS: a topic each)
     states: tuple[str, ...]  # its global states, in FSA order
     capabilities: Capabilities = Capabilities()
     settings: type | None = None  # its settings dataclass (shared by the team)
     options: tuple[Option, ...] = ()  # the settings users may set
-    channels: Mapping[str, tuple[type, ...]] = field(default_factory=dict)  # own transport
-    # channels (beside "step"): which of its messages travel there
     team_comm: Callable[[TeamInfo, CoordinationPolicy, Any], Any] | None = None
     # with team_knowledge: the one comm module speaking for the whole team (analytic engine)
     silence: Callable[[Any, int], None] | None = None

@@ -140,12 +140,16 @@ class Processes:
         self.shm_before = set(os.listdir("/dev/shm"))
 
     def start(self, name: str, exe: str, *ros_args: str) -> subprocess.Popen:
+        return self.run(name, [str(BIN / exe), "--ros-args", *ros_args])
+
+    def run(self, name: str, argv: list[str], env: dict[str, str] | None = None) -> subprocess.Popen:
+        """Any command, logged to ``<name>.log``, on the test's domain (or with ``env``)."""
         log = open(self.run_dir / f"{name}.log", "w")  # noqa: SIM115 - the process writes it
         p = subprocess.Popen(
-            [str(BIN / exe), "--ros-args", *ros_args],
+            argv,
             stdout=log,
             stderr=subprocess.STDOUT,
-            env=ros_env(self.domain),
+            env=env or ros_env(self.domain),
             start_new_session=True,
         )
         self.procs[name] = p
@@ -177,6 +181,32 @@ class Processes:
             if f.startswith(("fastrtps_", "sem.fastrtps_", "fast_datasharing")):
                 with contextlib.suppress(OSError):
                     os.unlink(f"/dev/shm/{f}")
+
+
+WAIT_MATCHED = r"""
+import sys, time, rclpy
+topic, n, seconds = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
+rclpy.init()
+node = rclpy.create_node("wait_matched")
+end = time.monotonic() + seconds
+while node.count_subscribers(topic) < n and time.monotonic() < end:
+    rclpy.spin_once(node, timeout_sec=0.05)
+ok = node.count_subscribers(topic) >= n
+node.destroy_node(); rclpy.shutdown()
+sys.exit(0 if ok else 1)
+"""
+
+
+def wait_subscribers(domain: int, topic: str, n: int, seconds: float = 60) -> None:
+    """Until ``topic`` has ``n`` subscribers in the graph (counted by a node of its own)."""
+    run = subprocess.run(
+        [sys.executable, "-c", WAIT_MATCHED, topic, str(n), str(seconds)],
+        env=ros_env(domain),
+        capture_output=True,
+        text=True,
+        timeout=seconds + 30,
+    )
+    assert run.returncode == 0, f"{topic}: fewer than {n} subscribers after {seconds} s {run.stderr[-500:]}"
 
 
 def reference(scenario, protocol: str, policy) -> dict:

@@ -1,5 +1,5 @@
 """The coordinator organisation over DDS: agent 0's process alone runs Algorithm Coordination and
-broadcasts the schedule on /ost/step_messages; the run equals ``ost sim --coordination
+broadcasts the schedule on /ost/schedule_update; the run equals ``ost sim --coordination
 coordinator`` field by field (N = 4 and 10, event skipping on)."""
 
 import json

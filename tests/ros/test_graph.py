@@ -1,52 +1,51 @@
-"""The node/topic graph over DDS is as documented, and malformed messages injected on every
-String topic are survived: a warning naming the sender, no crash, and the run still matches
-``ost sim``."""
+"""The node/topic graph over DDS is as documented (one typed topic per message kind), and
+malformed messages injected on the typed topics are survived: a warning naming the topic, the
+sender and the field, no crash, and the run still matches ``ost sim``."""
 
 import json
 import subprocess
 import sys
 import time
 
+from agent_node import transport as tp
+from ost_msgs_py import wire
+from ost_msgs_py.runtime import Tick
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
 from tests.ros.dds_helpers import BIN, reference, ros_env
 
-TOPICS = {
-    "/clock": "rosgraph_msgs/msg/Clock",
-    "/ost/markers": "visualization_msgs/msg/MarkerArray",
-    "/ost/acted": "std_msgs/msg/String",
-    "/ost/step_messages": "std_msgs/msg/String",
-    "/ost/ready": "std_msgs/msg/String",
-    "/ost/run_end": "std_msgs/msg/String",
-    "/ost/reports": "std_msgs/msg/String",
-    "/ost/result": "std_msgs/msg/String",
-    "/ost/agent_0/tick": "std_msgs/msg/String",
-    "/ost/agent_1/tick": "std_msgs/msg/String",
-    "/ost/agent_0/alive": "std_msgs/msg/String",
-    "/ost/agent_1/alive": "std_msgs/msg/String",
-}
-# Malformed on purpose: not JSON; wrong field type (with a sender to name); wrong version.
-BAD = [
-    "{not json",
-    '{"type": "acted", "sender": 1, "t": "x", "version": 1}',
-    '{"type": "step_messages", "sender": 5, "t": 0, "messages": [], "version": 99}',
-]
 
+def expected_topics(protocol: str, agents: int, ns: str = "/ost") -> dict[str, str]:
+    """Every topic of a run and its type, as ``ros2 topic list -t`` resolves them."""
+    topics = {f"{ns}/{name}": kind for name, (_, kind) in tp.TOPICS.items()}
+    topics.update({f"{ns}/{name}": kind for name, (_, kind) in tp.protocol_topics(protocol).items()})
+    for i in range(agents):
+        topics[f"{ns}/{tp.tick_topic(i)}"] = wire.type_name(Tick)
+        topics[f"{ns}/{tp.alive_topic(i)}"] = "std_msgs/msg/String"
+    return topics
+
+
+TOPICS = expected_topics("ccp", 2)
+
+# Malformed on purpose, each typed right but wrong in a value: the warning names the field.
 INJECT = r"""
-import sys, time, rclpy
-from std_msgs.msg import String
+import time, rclpy
+import ost_msgs.msg as ros
 from agent_node import transport as tp
-topics, bad = sys.argv[1].split(","), sys.argv[2:]
 rclpy.init()
-node = rclpy.create_node("injector")
-pubs = [node.create_publisher(String, t, tp.TOPICS.get(t, (tp.LOCKSTEP_QOS,))[0]) for t in topics]
+node = rclpy.create_node("injector", namespace=tp.NAMESPACE)
+acted = ros.Acted(); acted.action.agent = 1; acted.action.kind = "jump"
+report = ros.AgentReport(agent=1, predicted_makespan=-5)
+tick = ros.Tick(t=0, last=-1, peers=[1], counts=[]); tick.observation.agent = 0
+sel = ros.Selection(run="other", step=0, seq=0, sender=5, t=0, coordination=1, objects=[99])
+msgs = [("acted", acted), ("reports", report), ("agent_0/tick", tick), ("selection", sel)]
+pubs = [(node.create_publisher(type(m), t, tp.TOPICS.get(t, (tp.LOCKSTEP_QOS,))[0]), m) for t, m in msgs]
 end = time.monotonic() + 10
-while any(p.get_subscription_count() == 0 for p in pubs) and time.monotonic() < end:
+while any(p.get_subscription_count() == 0 for p, _ in pubs) and time.monotonic() < end:
     rclpy.spin_once(node, timeout_sec=0.05)
-for p in pubs:
-    for text in bad:
-        p.publish(String(data=text))
+for p, m in pubs:
+    p.publish(m)
 end = time.monotonic() + 1.0   # let reliable delivery finish before leaving
 while time.monotonic() < end:
     rclpy.spin_once(node, timeout_sec=0.05)
@@ -79,6 +78,7 @@ def test_graph_and_malformed_messages(tmp_path, procs, domain):
     procs.start("agent_0", "agent_node", "-p", f"scenario:={path}", "-p", "agent_id:=0")
     # agent_1 is missing: the world waits for it, so the graph holds still.
     procs.wait_for("world", "waiting for 2 agents")
+    # ros2 topic list -t's form, through the stand-in (tests/ros/test_ros2cli.py: the real CLI)
     end = time.monotonic() + 30
     while True:  # discovery takes 0-3 s: poll the graph until complete (or give up)
         nodes = ost(domain, "ros", "node", "list", "--spin-time", "3")
@@ -92,31 +92,23 @@ def test_graph_and_malformed_messages(tmp_path, procs, domain):
     for name, kind in TOPICS.items():
         assert graph.get(name) == f"[{kind}]", (name, listed.stdout)
 
-    strings = [
-        t
-        for t, k in TOPICS.items()  # agent_1's tick has no reader yet; alive: no data
-        if k == "std_msgs/msg/String" and t != "/ost/agent_1/tick" and not t.endswith("/alive")
-    ]
     inj = subprocess.run(
-        [sys.executable, "-c", INJECT, ",".join(strings), *BAD],
-        env=ros_env(domain),
-        capture_output=True,
-        text=True,
-        timeout=60,
+        [sys.executable, "-c", INJECT], env=ros_env(domain), capture_output=True, text=True, timeout=60
     )
     assert inj.returncode == 0, inj.stderr
-    # Each receiver warns once per topic and sender, naming both, and keeps running.
-    for name, topic in [
-        ("world", "/ost/acted"),
-        ("world", "/ost/ready"),
-        ("world", "/ost/reports"),
-        ("agent_0", "/ost/step_messages"),
-        ("agent_0", "/ost/run_end"),
-        ("agent_0", "/ost/agent_0/tick"),
-    ]:
-        procs.wait_for(name, f"dropped message on {topic} from unknown")
-    procs.wait_for("world", "dropped message on /ost/acted from agent 1: acted.sender: unknown field")
-    procs.wait_for("agent_0", "from agent 5: step_messages.version: unsupported version 99")
+    # Each receiver warns once per topic and sender, naming both and the field, and keeps running.
+    procs.wait_for(
+        "world",
+        "dropped message on /ost/acted from agent 1: acted.action.kind: 'jump' is not one of wait, move, carry",
+    )
+    procs.wait_for(
+        "world",
+        "dropped message on /ost/reports from agent 1: agent_report.predicted_makespan: -5 "
+        "(expected -1 for none, or a value >= 0)",
+    )
+    procs.wait_for(
+        "agent_0", "dropped message on /ost/agent_0/tick from unknown: tick lists 1 peers and 0 counts"
+    )
 
     procs.start("agent_1", "agent_node", "-p", f"scenario:={path}", "-p", "agent_id:=1")
     end = time.monotonic() + 60
@@ -131,6 +123,8 @@ def test_graph_and_malformed_messages(tmp_path, procs, domain):
     for name in ("agent_0", "agent_1"):
         procs.procs[name].wait(20)
         assert procs.procs[name].returncode == 0, procs.log(name)
+    # the stray selection (another run, an agent not in the team) was dropped once the run began
+    assert "dropped message on /ost/selection from agent 5: selection of run 'other'" in procs.log("agent_0")
     assert "Traceback" not in procs.log("world") + procs.log("agent_0") + procs.log("agent_1")
 
 

@@ -1,6 +1,6 @@
 """Isolation over DDS: two runs at once (each on its own domain) do not interfere, and a stray
 publisher on a run's own domain sending well-formed but false messages — another run's step
-messages and actions claiming to be agent 1, with a selection that contradicts the algorithm —
+selections and actions claiming to be agent 1, with a selection that contradicts the algorithm —
 is detected (warned, naming the topic and the claimed sender) and ignored: the run still equals
 ``ost sim``."""
 
@@ -15,17 +15,17 @@ from tests.ros.dds_helpers import ost_up, reference, result_json, ros_env
 
 STRAY = r"""
 import sys, time, rclpy
-from std_msgs.msg import String
 from agent_node import transport as tp
+from ost_msgs_py import wire
 from ost_msgs_py.messages import Action, ActionKind, Selection
-from ost_msgs_py.runtime import Acted, StepMessages
+from ost_msgs_py.runtime import Acted, Sample
 rclpy.init()
-node = rclpy.create_node("stray")
-batch = node.create_publisher(String, tp.STEP_MESSAGES, tp.LOCKSTEP_QOS)
-acted = node.create_publisher(String, tp.ACTED, tp.LOCKSTEP_QOS)
+node = rclpy.create_node("stray", namespace=tp.NAMESPACE)
+batch = node.create_publisher(wire.ros_type(Selection), tp.message_topic(Selection), tp.LOCKSTEP_QOS)
+acted = node.create_publisher(wire.ros_type(Acted), tp.ACTED, tp.LOCKSTEP_QOS)
 end = time.monotonic() + 30
 # volatile QoS: a sample sent before its reader is matched is never delivered, so wait for
-# every agent's batch reader and the world's action reader
+# every agent's selection reader and the world's action reader
 while ((batch.get_subscription_count() < 4 or acted.get_subscription_count() < 1)
        and time.monotonic() < end):
     rclpy.spin_once(node, timeout_sec=0.05)
@@ -33,8 +33,8 @@ sent = 0
 end = time.monotonic() + 6.0   # keep at it while the run goes on (it may start after us)
 while time.monotonic() < end and batch.get_subscription_count() >= 4:
     for t in range(0, 50):   # false selections for steps, claiming agent 1, from "another run"
-        batch.publish(tp.to_string(StepMessages(1, t, (Selection(1, t, 1, (99,)),), run="stray")))
-        acted.publish(tp.to_string(Acted(Action(1, t, ActionKind.WAIT), 0, (), run="stray")))
+        batch.publish(wire.to_ros(Sample(Selection(1, t, 1, (99,)), t, 0, run="stray")))
+        acted.publish(wire.to_ros(Acted(Action(1, t, ActionKind.WAIT), 0, (), run="stray")))
         sent += 1
     rclpy.spin_once(node, timeout_sec=0.2)
 node.destroy_node(); rclpy.shutdown()
@@ -105,8 +105,39 @@ def test_stray_publisher_is_detected_and_ignored(tmp_path, domain):
     logs = {p.name: p.read_text() for p in (tmp_path / "run").glob("*.log")}
     assert "dropped message on /ost/acted from agent 1: action of run 'stray'" in logs["world.log"]
     assert any(
-        "from agent 1: step_messages of run 'stray'" in text
+        "dropped message on /ost/selection from agent 1: selection of run 'stray'" in text
         for name, text in logs.items()
         if name.startswith("agent_")
     )
     assert not any("Traceback" in text for text in logs.values())
+
+
+def test_two_teams_in_two_namespaces_share_a_domain(tmp_path, domain):
+    runs = {"ost": scenario_file(tmp_path, "a", 1), "team_a": scenario_file(tmp_path, "b", 2)}
+    out = {}
+
+    def go(ns):
+        out[ns] = ost_up(
+            "--scenario",
+            str(runs[ns][0]),
+            "--json",
+            "--no-skip",
+            "--namespace",
+            ns,
+            "--domain-id",
+            str(domain),
+            "--run-dir",
+            str(tmp_path / f"run_{ns}"),
+        )
+
+    threads = [threading.Thread(target=go, args=(ns,)) for ns in runs]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    for ns, (_, expected) in runs.items():
+        assert out[ns].returncode == 0, out[ns].stderr
+        assert f"namespace /{ns}," in out[ns].stderr
+        assert result_json(out[ns].stdout) == expected
+        logs = [p.read_text() for p in (tmp_path / f"run_{ns}").glob("*.log")]
+        assert not any("dropped message" in text for text in logs)  # nothing crossed over

@@ -1,4 +1,4 @@
-"""NCP over DDS (real rclpy processes): negotiation moves travel on /ost/negotiation between the
+"""NCP over DDS (real rclpy processes): negotiation moves travel on /ost/negotiation_offer between the
 agent processes and the run equals ``ost sim --protocol ncp``; a negotiator that goes silent is
 timed out and the others conclude without it — the same outcome as in-process."""
 

@@ -1,5 +1,5 @@
 """The lockstep protocol without DDS: world and agent runtimes wired directly, every message
-through the codec. Skipping on and off give exactly ``simulate``'s result (no transport here;
+converted to its ost_msgs interface and back. Skipping on and off give exactly ``simulate``'s result (no transport here;
 the DDS tests run the same runtimes in real processes)."""
 
 import dataclasses
@@ -7,7 +7,8 @@ import dataclasses
 import pytest
 
 from agent_node.runtime import AgentRuntime, ProtocolViolation
-from ost_msgs_py.runtime import Acted, AgentReport, Resend, RunEnd, StepMessages
+from ost_msgs_py.messages import SearchDone, Selection
+from ost_msgs_py.runtime import Acted, AgentReport, Resend, RunEnd, Sample
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate
 from ost_ros.model import Grid
@@ -47,7 +48,7 @@ def test_out_of_turn_messages_are_refused():
         rt.accept_tick(ticks[1])
     rt.accept_tick(ticks[0])
     with pytest.raises(ProtocolViolation, match="not in the team"):
-        rt.accept_batch(StepMessages(7, 0, ()))
+        rt.accept_sample(Sample(SearchDone(7, 0), 0, 0))
     (acted,) = rt.progress()
     world.accept_acted(acted)
     world.accept_acted(acted)  # the same answer again (a resend): ignored
@@ -61,7 +62,7 @@ def test_out_of_turn_messages_are_refused():
 
 def run_lossy(scenario, protocol, policy, lose):
     """Like ``run``, but ``lose(k)`` drops the k-th delivery; on a stall the recovery the nodes do
-    on their timers runs: the world re-sends ticks / run_end, agents ask for missing batches."""
+    on their timers runs: the world re-sends ticks / run_end, agents ask for missing messages."""
     ids = tuple(a.id for a in scenario.agents)
     rts = {a.id: AgentRuntime(a, ids, 64) for a in make_agents(scenario, protocol, policy)}
     world = WorldRuntime(scenario, skipping=True)
@@ -87,10 +88,10 @@ def run_lossy(scenario, protocol, policy, lose):
     for _ in range(10**6):
         out = [m for r in rts.values() for m in r.progress()]
         for m in out:
-            if isinstance(m, StepMessages):
+            if isinstance(m, Sample):
                 for r in rts.values():
                     if (d := deliver(m)) is not None:
-                        r.accept_batch(d)
+                        r.accept_sample(d)
             elif (d := deliver(m)) is not None:
                 (world.accept_report if isinstance(d, AgentReport) else world.accept_acted)(d)
         if isinstance(nxt, RunEnd):
@@ -120,7 +121,7 @@ def run_lossy(scenario, protocol, policy, lose):
 
 @pytest.mark.parametrize("protocol", names())
 def test_lost_samples_are_recovered_and_change_nothing(protocol):
-    # One delivery in five is lost (ticks, answers, batches, run_end, reports, resend requests).
+    # One delivery in five is lost (ticks, answers, messages, run_end, reports, resend requests).
     scenario = generate_scenario(5, 8, 4, Grid(30, 12), 3)
     policy = CoordinationPolicy(ci=2)
     result, lost = run_lossy(scenario, protocol, policy, lambda k: k % 5 == 3)
@@ -128,26 +129,25 @@ def test_lost_samples_are_recovered_and_change_nothing(protocol):
     assert result.to_dict() == simulate(scenario, protocol, policy).to_dict()
 
 
-def test_ncp_moves_travel_as_their_own_part():
-    from agent_node.runtime import split_batch
-    from ost_msgs_py.messages import NegotiationOffer, SearchDone
-    from ost_ros.protocols.ncp import SPEC
+def test_the_barrier_waits_for_every_counted_message_and_keeps_the_outbox_order():
+    from ost_msgs_py.messages import NegotiationOffer
 
-    move = NegotiationOffer(1, 5, 1, 0, "offer", (3, 4))
-    parts = split_batch(1, 5, [move, SearchDone(1, 5)], "", SPEC.channels)
-    assert [(p.channel, p.parts, len(p.messages)) for p in parts] == [("step", 2, 1), ("negotiation", 2, 1)]
-    assert split_batch(1, 5, [move], "", SPEC.channels)[0].parts == 1
-    # a receiver waits for every part before running its comm module
     scenario = generate_scenario(2, 2, 1, Grid(12, 6), 2)
-    ids = (0, 1)
-    rt = AgentRuntime(make_agents(scenario, "ncp", CoordinationPolicy())[0], ids)
+    rt = AgentRuntime(make_agents(scenario, "ncp", CoordinationPolicy())[0], (0, 1))
     rt.last, rt.run = 5, ""  # as if its first tick (of run "") had come
-    rt.accept_batch(wire(parts[1]))
-    assert not rt._ready((1,))
-    rt.accept_batch(wire(parts[0]))
-    assert rt._ready((1,))
-    with pytest.raises(ProtocolViolation, match="channel"):
-        rt.accept_batch(dataclasses.replace(parts[0], channel="bogus"))
+    move = NegotiationOffer(1, 5, 1, 0, "offer", (3, 4))
+    done = SearchDone(1, 5)
+    # the sender's outbox was [done, move]; its samples arrive on two topics, move first
+    rt.accept_sample(wire(Sample(move, 5, 1)))
+    assert not rt._ready((1,), (2,))
+    rt.accept_sample(wire(Sample(done, 5, 0)))
+    assert rt._ready((1,), (2,))
+    assert [rt._inbox[5][1][k] for k in range(2)] == [done, move]
+    rt.accept_sample(wire(Sample(done, 5, 0)))  # the same again (a resend): ignored
+    with pytest.raises(ProtocolViolation, match="second, different message #0"):
+        rt.accept_sample(Sample(move, 5, 0))
+    with pytest.raises(ProtocolViolation, match="not a message of protocol ncp"):
+        rt.accept_sample(Sample(Selection(1, 5, 1, (2,)), 5, 2))
 
 
 @pytest.mark.parametrize("protocol", ["ccp", "ncp"])
@@ -170,13 +170,13 @@ def test_messages_of_another_run_are_dropped():
     agents = make_agents(scenario, "ccp", policy)
     world = WorldRuntime(scenario, run="r1")
     rt = AgentRuntime(agents[0], ids)
-    stray = StepMessages(1, 0, (), run="other")
-    rt.accept_batch(stray)  # before the first tick: held, then judged
+    stray = Sample(SearchDone(1, 0), 0, 0, run="other")
+    rt.accept_sample(stray)  # before the first tick: held, then judged
     ticks = world.start()
     rt.accept_tick(ticks[0])
     assert rt.run == "r1" and rt.dropped and "run 'other'" in rt.dropped[0][1]
     with pytest.raises(ProtocolViolation, match="run 'other'"):
-        rt.accept_batch(stray)
+        rt.accept_sample(stray)
     out = rt.progress()
     acted = next(m for m in out if isinstance(m, Acted))
     assert acted.run == "r1"

@@ -47,7 +47,6 @@ SPEC = ProtocolSpec(
         Option("ncp_delta", "delta", "claim discount per negotiation round, in (0, 1)"),
         Option("ncp_timeout", "timeout_rounds", "rounds without an answer before a negotiator is left out"),
     ),
-    channels={"negotiation": (NegotiationOffer,)},
     team_comm=team_comm,
     silence=silence,
     note="Not in the paper: at each coordination point the found objects are allocated by the "

@@ -1,0 +1,40 @@
+"""Node parameters with descriptors: what ``ros2 param describe`` shows and ``ros2 param set`` obeys.
+
+Every parameter of the world and agent nodes defines the run and is read once at start, so all
+are read-only: ``ros2 param set /ost/agent_0 ci 5`` is refused with rclpy's reason ("Trying to
+set a read-only parameter") instead of answering "successful" and being ignored. Numeric ones
+carry their range, which rclpy checks when the node starts (a value out of range stops the node
+with one line naming the parameter).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.node import Node
+
+INT_MAX = 2**31 - 1
+
+
+def declare(
+    node: Node,
+    name: str,
+    default: Any,
+    description: str,
+    lo: float | None = None,
+    hi: float | None = None,
+    constraints: str = "",
+) -> None:
+    """Declare a read-only parameter with its description, range and constraints."""
+    d = ParameterDescriptor(description=description, read_only=True, additional_constraints=constraints)
+    if lo is not None or hi is not None:
+        if isinstance(default, bool):
+            raise TypeError(f"{name}: a bool has no range")
+        if isinstance(default, int):
+            d.integer_range = [IntegerRange(from_value=int(lo or 0), to_value=int(hi or INT_MAX), step=0)]
+        else:
+            d.floating_point_range = [
+                FloatingPointRange(from_value=float(lo or 0.0), to_value=float(hi or 1e9), step=0.0)
+            ]
+    node.declare_parameter(name, default, d)
