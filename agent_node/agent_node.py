@@ -25,7 +25,7 @@ import sys
 
 import rclpy
 import yaml
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import String
 
@@ -141,20 +141,29 @@ class AgentRunner:
         me = runtime.me
         q = tp.LOCKSTEP_QOS
         self.tick_topic = tp.tick_topic(me)
-        self.pub_acted = node.create_publisher(wire.ros_type(Acted), tp.ACTED, q)
-        self.pub_ready = node.create_publisher(wire.ros_type(Ready), tp.READY, tp.LATCHED_ALL_QOS)
-        self.pub_report = node.create_publisher(wire.ros_type(AgentReport), tp.REPORTS, tp.LATCHED_ALL_QOS)
-        self.sub_tick = node.create_subscription(wire.ros_type(Tick), self.tick_topic, self.on_tick, q)
-        self.pub_resend = node.create_publisher(wire.ros_type(Resend), tp.RESEND, q)
-        self.sub_resend = node.create_subscription(wire.ros_type(Resend), tp.RESEND, self.on_resend, q)
+        pub, sub = tp.no_events_pub, tp.no_events_sub
+        self.pub_acted = node.create_publisher(wire.ros_type(Acted), tp.ACTED, q, event_callbacks=pub())
+        self.pub_ready = node.create_publisher(
+            wire.ros_type(Ready), tp.READY, tp.LATCHED_ALL_QOS, event_callbacks=pub()
+        )
+        self.pub_report = node.create_publisher(
+            wire.ros_type(AgentReport), tp.REPORTS, tp.LATCHED_ALL_QOS, event_callbacks=pub()
+        )
+        self.sub_tick = node.create_subscription(
+            wire.ros_type(Tick), self.tick_topic, self.on_tick, q, event_callbacks=sub()
+        )
+        self.pub_resend = node.create_publisher(wire.ros_type(Resend), tp.RESEND, q, event_callbacks=pub())
+        self.sub_resend = node.create_subscription(
+            wire.ros_type(Resend), tp.RESEND, self.on_resend, q, event_callbacks=sub()
+        )
         self.resent_at: float | None = None
         self.sub_end = node.create_subscription(
-            wire.ros_type(RunEnd), tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS
+            wire.ros_type(RunEnd), tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS, event_callbacks=sub()
         )
         # One topic per message kind of the protocol (object_found, selection, ...), every agent
         # publishing and subscribing: all of them are part of the step's barrier.
         self.kind_pubs = {
-            kind: node.create_publisher(wire.ros_type(kind), tp.message_topic(kind), q)
+            kind: node.create_publisher(wire.ros_type(kind), tp.message_topic(kind), q, event_callbacks=pub())
             for kind in runtime.kinds
         }
         self.kind_subs = [
@@ -163,6 +172,7 @@ class AgentRunner:
                 tp.message_topic(kind),
                 functools.partial(self.on_sample, kind=kind),
                 q,
+                event_callbacks=sub(),
             )
             for kind in runtime.kinds
         ]
@@ -371,8 +381,12 @@ def main(args=None) -> int:
         name = tp.agent_node_name(agent_id) if agent_id is not None else "agent"
         node = AgentNode(name)
         runner = node.runner
+        # One executor for the node's life: rclpy.spin_once(node) adds and removes the node on
+        # every call, rebuilding the wait set for each sample (one sample per message kind now).
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
         while rclpy.ok() and not runner.done:
-            rclpy.spin_once(node, timeout_sec=0.5)
+            executor.spin_once(timeout_sec=0.5)
         code = runner.exit_code
     except ParameterError as exc:
         print(f"agent_node: error: {exc}", file=sys.stderr)

@@ -18,6 +18,7 @@ import time
 from typing import Any
 
 from rclpy.duration import Duration
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
 
 from ost_msgs_py import wire
@@ -129,6 +130,19 @@ TICK_TYPE = wire.type_name(Tick)
 def protocol_topics(protocol: str) -> dict[str, tuple[QoSProfile, str]]:
     """The topics only a run of the given protocol has: one per message kind it broadcasts."""
     return {message_topic(m): (LOCKSTEP_QOS, wire.type_name(m)) for m in protocols.get(protocol).messages}
+
+
+def no_events_pub() -> PublisherEventCallbacks:
+    """For the many per-kind and per-agent endpoints: no default event handlers. Each handler is
+    a waitable that every wait of the executor adds to its wait set — one wait per sample, so on
+    the busiest endpoints the handlers cost more than the samples (an incompatible-QoS reader is
+    still refused by DDS; the ros2 tool that brings it warns)."""
+    return PublisherEventCallbacks(use_default_callbacks=False)
+
+
+def no_events_sub() -> SubscriptionEventCallbacks:
+    """See :func:`no_events_pub`."""
+    return SubscriptionEventCallbacks(use_default_callbacks=False)
 
 
 def scenario_fingerprint(scenario: Scenario) -> str:

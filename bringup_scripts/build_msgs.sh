@@ -40,7 +40,7 @@ py="$venv/bin/python3"
 "$py" -c 'import sysconfig, os, sys; sys.exit(0 if os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")) else 1)' \
   || die "Python.h is missing for $py (the interpreter's development headers, e.g. python3.12-dev)"
 
-say "building the ost_msgs interfaces (first time: about 20-40 s)"
+say "building the ost_msgs interfaces (first time: about a minute)"
 t0=$(date +%s)
 log="$venv/build_msgs.log"; : > "$log"
 mkdir -p "$build"

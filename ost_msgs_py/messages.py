@@ -1,8 +1,10 @@
 """Message schemas shared by the protocol core and the ROS layer.
 
-Plain dataclasses, ROS-free. Every message has a ``type`` tag and a schema ``version``; the codec
-(:mod:`ost_msgs_py.codec`) turns them into JSON text (carried in ``std_msgs/msg/String`` on the
-wire) and back with strict validation, so ``ros2 topic echo`` shows readable content.
+Plain dataclasses, ROS-free. Every message has a ``TYPE`` tag (over DDS: its topic,
+``/ost/<TYPE>``) and an ``ost_msgs`` interface of the same name, field for field
+(``ost_msgs_py/ost_msgs/msg/``); :mod:`ost_msgs_py.wire` converts between the two with strict
+validation. ``version`` is the schema's version inside the process; on the wire the interface's
+type hash plays that part.
 
 Two families:
 - agent ↔ agent (the comm module): :class:`ObjectFound`, :class:`SearchDone`, :class:`Selection`,
@@ -138,7 +140,7 @@ class NegotiationOffer:
     ``offer`` is the offer vector: the ids of the objects in which the sender claims one carrying
     slot. ``kind`` is ``offer`` (a claim, possibly unchanged) or ``exit`` (the sender leaves with
     ``offer``, which nobody contests any more). ``receiver`` is -1: every move goes to everyone.
-    Carried on ``/ost/negotiation`` by the ROS runtime.
+    Carried on ``/ost/negotiation_offer`` by the ROS runtime.
     """
 
     TYPE: ClassVar[str] = "negotiation_offer"

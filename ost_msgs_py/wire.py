@@ -8,7 +8,9 @@ classes' field types, so a new message needs its ``.msg`` file and its dataclass
 Field mapping: ``int``/``str``/``bool`` as they are; ``str`` enums as their value (checked on the
 way in); a cell ``tuple[int, int]`` as ``ost_msgs/Cell``; other fixed tuples positionally onto a
 message (``found``: ``ost_msgs/FoundObject``); ``tuple[T, ...]`` as a sequence; nested dataclasses
-as nested messages; ``int | None`` as ``-1`` for None. The dataclasses' ``version`` is the
+as nested messages; ``int | None`` as ``-1`` for None; a plan (``tuple[PlanStep, ...]``) as
+``ost_msgs/Plan``, parallel arrays (a 64-step plan would otherwise be 64 messages and 128 cells
+to build and take apart on every action). The dataclasses' ``version`` is the
 interface itself (its type hash), so it is not a field on the wire.
 
 A protocol message travels as a :class:`~ost_msgs_py.runtime.Sample`: the message's fields plus
@@ -32,7 +34,8 @@ import ost_msgs.msg as ros
 
 from ost_msgs_py import messages as _messages
 from ost_msgs_py import runtime as _runtime
-from ost_msgs_py.runtime import Sample
+from ost_msgs_py.messages import ActionKind
+from ost_msgs_py.runtime import PlanStep, Sample
 
 
 class MessageError(ValueError):
@@ -78,6 +81,8 @@ def _ros_class(field_type: str) -> type | None:
 
 def _converters(hint: Any, field_type: str, where: str) -> tuple[ToRos, FromRos]:
     """(to ROS, from ROS) for one field of the given type hint and ROS field type."""
+    if field_type == "ost_msgs/Plan":
+        return _plan_to_ros, _plan_from_ros
     origin = typing.get_origin(hint)
     if origin in (typing.Union, types.UnionType):
         return _optional(hint, where)
@@ -142,6 +147,58 @@ def _enum(hint: type[enum.Enum]) -> tuple[ToRos, FromRos]:
             raise MessageError(f"{w}: {_describe(v)} is not one of {allowed}") from None
 
     return (lambda v: v.value), from_enum
+
+
+_KINDS = (ActionKind.WAIT, ActionKind.MOVE, ActionKind.CARRY)  # Plan's WAIT=0, MOVE=1, CARRY=2
+_KIND_CODE = {k: n for n, k in enumerate(_KINDS)}
+
+
+def _plan_to_ros(plan: tuple[PlanStep, ...]) -> Any:
+    """A plan as ``ost_msgs/Plan``: parallel arrays, no message object per step."""
+    return ros.Plan(
+        x=array.array("i", [p.position[0] for p in plan]),
+        y=array.array("i", [p.position[1] for p in plan]),
+        searching=[p.searching for p in plan],
+        sensed_count=array.array("H", [len(p.sensed) for p in plan]),
+        sensed=array.array("i", [i for p in plan for i in p.sensed]),
+        kind=array.array("B", [_KIND_CODE[p.kind] for p in plan]),
+        dx=array.array("b", [p.direction[0] for p in plan]),
+        dy=array.array("b", [p.direction[1] for p in plan]),
+        object=array.array("i", [p.object for p in plan]),
+        state=[p.state for p in plan],
+    )
+
+
+def _plan_from_ros(msg: Any, where: str) -> tuple[PlanStep, ...]:
+    n = len(msg.x)
+    columns = ("y", "searching", "sensed_count", "kind", "dx", "dy", "object", "state")
+    for name in columns:
+        if len(getattr(msg, name)) != n:
+            raise MessageError(f"{where}.{name}: {len(getattr(msg, name))} entries, x has {n}")
+    if sum(msg.sensed_count) != len(msg.sensed):
+        raise MessageError(
+            f"{where}.sensed: {len(msg.sensed)} ids, sensed_count says {sum(msg.sensed_count)}"
+        )
+    out, k = [], 0
+    for i in range(n):
+        code = msg.kind[i]
+        if code >= len(_KINDS):
+            raise MessageError(f"{where}.kind[{i}]: {code} is not one of 0 (wait), 1 (move), 2 (carry)")
+        c = msg.sensed_count[i]
+        sensed = tuple(msg.sensed[k : k + c])
+        k += c
+        out.append(
+            PlanStep(
+                (msg.x[i], msg.y[i]),
+                bool(msg.searching[i]),
+                sensed,
+                _KINDS[code],
+                (msg.dx[i], msg.dy[i]),
+                msg.object[i],
+                msg.state[i],
+            )
+        )
+    return tuple(out)
 
 
 @dataclasses.dataclass

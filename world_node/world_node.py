@@ -38,7 +38,7 @@ from pathlib import Path
 import rclpy
 from builtin_interfaces.msg import Time
 from rclpy.event_handler import SubscriptionEventCallbacks
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
@@ -143,15 +143,23 @@ class WorldNode(Node):
         q = tp.LOCKSTEP_QOS
         self.pub_clock = self.create_publisher(Clock, tp.CLOCK, tp.LATEST_QOS)
         self.pub_markers = self.create_publisher(MarkerArray, tp.MARKERS, tp.LATEST_QOS)
-        self.pub_tick = {i: self.create_publisher(wire.ros_type(Tick), tp.tick_topic(i), q) for i in self.ids}
-        self.pub_end = self.create_publisher(wire.ros_type(RunEnd), tp.RUN_END, tp.LATCHED_ALL_QOS)
+        pub, sub = tp.no_events_pub, tp.no_events_sub  # lockstep endpoints: see no_events_pub
+        self.pub_tick = {
+            i: self.create_publisher(wire.ros_type(Tick), tp.tick_topic(i), q, event_callbacks=pub())
+            for i in self.ids
+        }
+        self.pub_end = self.create_publisher(
+            wire.ros_type(RunEnd), tp.RUN_END, tp.LATCHED_ALL_QOS, event_callbacks=pub()
+        )
         self.pub_result = self.create_publisher(String, tp.RESULT, tp.RESULT_QOS)
-        self.sub_acted = self.create_subscription(wire.ros_type(Acted), tp.ACTED, self.on_acted, q)
+        self.sub_acted = self.create_subscription(
+            wire.ros_type(Acted), tp.ACTED, self.on_acted, q, event_callbacks=sub()
+        )
         self.sub_ready = self.create_subscription(
-            wire.ros_type(Ready), tp.READY, self.on_ready, tp.LATCHED_ALL_QOS
+            wire.ros_type(Ready), tp.READY, self.on_ready, tp.LATCHED_ALL_QOS, event_callbacks=sub()
         )
         self.sub_report = self.create_subscription(
-            wire.ros_type(AgentReport), tp.REPORTS, self.on_report, tp.LATCHED_ALL_QOS
+            wire.ros_type(AgentReport), tp.REPORTS, self.on_report, tp.LATCHED_ALL_QOS, event_callbacks=sub()
         )
         # One liveliness reader per robot: a killed agent process is reported within the lease.
         self.sub_alive = {}
@@ -160,7 +168,9 @@ class WorldNode(Node):
         self.failure_timeout = p["failure_timeout"]
         if p["failure_timeout"] > 0:
             for i in self.ids:
-                events = SubscriptionEventCallbacks(liveliness=functools.partial(self.on_liveliness, i))
+                events = SubscriptionEventCallbacks(
+                    liveliness=functools.partial(self.on_liveliness, i), use_default_callbacks=False
+                )
                 self.sub_alive[i] = self.create_subscription(
                     String,
                     tp.alive_topic(i),
@@ -475,8 +485,10 @@ def main(args=None) -> int:
     code = 0
     try:
         node = WorldNode()
+        executor = SingleThreadedExecutor()  # kept: rclpy.spin_once(node) rebuilds per call
+        executor.add_node(node)
         while rclpy.ok() and not node.done:
-            rclpy.spin_once(node, timeout_sec=0.5)
+            executor.spin_once(timeout_sec=0.5)
         code = 0 if node.rt.ended is not None and node.rt.ended.completed else 1
     except ParameterError as exc:
         print(f"world_node: error: {exc}", file=sys.stderr)

@@ -46,6 +46,7 @@ ids = st.integers(-1, 10**4)
 counts = st.integers(0, 10**4)
 steps = st.integers(-1, 10**12)  # int64 on the wire
 cells = st.tuples(ints, ints)
+moves = st.tuples(st.integers(-1, 1), st.integers(-1, 1))
 texts = st.text(max_size=8)
 id_lists = st.lists(ints, max_size=4).map(tuple)
 infos = st.builds(ObjectInfo, ids, cells, cells, st.integers(1, 10))
@@ -89,7 +90,7 @@ runtime_msgs = st.one_of(
         counts,
         st.lists(
             st.builds(
-                PlanStep, cells, st.booleans(), id_lists, st.sampled_from(list(ActionKind)), cells, ids, texts
+                PlanStep, cells, st.booleans(), id_lists, st.sampled_from(list(ActionKind)), moves, ids, texts
             ),
             max_size=3,
         ).map(tuple),
@@ -151,12 +152,20 @@ def test_every_dataclass_has_its_interface():
 
 
 def test_bad_values_name_the_field():
-    acted = wire.to_ros(Acted(Action(1, 2, ActionKind.WAIT), 0))
-    acted.plan = [wire.to_ros(PlanStep((0, 0), False, (), ActionKind.MOVE, (1, 0), -1, "S"))]
-    acted.plan[0].kind = "fly"
+    step = PlanStep((0, 0), False, (), ActionKind.MOVE, (1, 0), -1, "S")
+    acted = wire.to_ros(Acted(Action(1, 2, ActionKind.WAIT), 0, (step, step)))
+    acted.action.kind = "fly"
     with pytest.raises(
-        wire.MessageError, match=r"acted\.plan\[0\]\.kind: 'fly' is not one of wait, move, carry"
+        wire.MessageError, match=r"acted\.action\.kind: 'fly' is not one of wait, move, carry"
     ):
+        wire.from_ros(acted)
+    acted.action.kind = "wait"
+    acted.plan.kind[1] = 7
+    with pytest.raises(wire.MessageError, match=r"acted\.plan\.kind\[1\]: 7 is not one of 0 \(wait\)"):
+        wire.from_ros(acted)
+    acted.plan.kind[1] = 1
+    acted.plan.dy = [0]
+    with pytest.raises(wire.MessageError, match=r"acted\.plan\.dy: 1 entries, x has 2"):
         wire.from_ros(acted)
     report = wire.to_ros(AgentReport(1, "ccp", "CI=1", None, 0, (), (), (), 0))
     assert wire.from_ros(report).predicted_makespan is None
