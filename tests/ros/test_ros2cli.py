@@ -43,6 +43,14 @@ pytestmark = pytest.mark.skipif(
 )
 
 
+@pytest.fixture(autouse=True)
+def stop_daemon(domain):
+    """``ros2 topic echo`` starts a ros2 daemon on the test's domain (it has no --no-daemon);
+    the daemon would outlive the test and show up in the next graph on that domain."""
+    yield
+    ros2(domain, "daemon", "stop", timeout=60)
+
+
 def cli_env(domain: int) -> dict[str, str]:
     env = ros_env(domain)
     prefixes = [str(VENV), *filter(None, os.environ.get("AMENT_PREFIX_PATH", "").split(":"))]
