@@ -196,8 +196,7 @@ class AgentRuntime:
         return all(k in msgs for k in range(count))
 
     def _ready(self, peers: tuple[int, ...], counts: tuple[int, ...]) -> bool:
-        if len(peers) != len(counts):
-            return False  # never from the world (the node checks it); a held tick shows it
+        # (peers and counts are the same length: accept_tick/accept_end refuse any other)
         return all(p == self.me or self._has(p, n) for p, n in zip(peers, counts))
 
     def _finish_step(
