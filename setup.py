@@ -40,6 +40,7 @@ setup(
             "ost = ost_ros.cli:main",
             "world_node = world_node.world_node:main",
             "agent_node = agent_node.agent_node:main",
+            "watch_node = world_node.watch_node:main",
         ],
     },
 )

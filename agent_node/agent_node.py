@@ -30,6 +30,7 @@ from rclpy.node import Node
 from std_msgs.msg import String
 
 from agent_node import transport as tp
+from agent_node.params import ParameterError
 from agent_node.params import declare as declare_param
 from agent_node.runtime import AgentRuntime, ProtocolViolation
 from ost_msgs_py import wire
@@ -44,10 +45,6 @@ from ost_ros.team import TeamInfo
 WORLD_LOST_S = 10.0
 # A tick held this long for peers' step messages is reported (whose are missing).
 STALL_S = 5.0
-
-
-class ParameterError(ValueError):
-    """A bad node parameter; the text names it."""
 
 
 class AgentNode(Node):
@@ -129,6 +126,8 @@ class AgentRunner:
         self.rt = runtime
         self.organisation = policy.organisation
         self.n = len(runtime.team)
+        # A recorder or live view must hold every sample of the run: the start waits for it too.
+        self.observers = node.get_parameter("observers").value
         self.fingerprint = tp.scenario_fingerprint(scenario)
         self.protocol = runtime.agent.protocol
         self.done = False
@@ -190,15 +189,16 @@ class AgentRunner:
 
     def matched(self) -> bool:
         """Every endpoint this agent needs is matched (counted, never waited for by sleeping)."""
+        k = self.observers
         return (
-            self.pub_acted.get_subscription_count() >= 1
-            and self.pub_ready.get_subscription_count() >= 1
-            and self.pub_report.get_subscription_count() >= 1
+            self.pub_acted.get_subscription_count() >= 1 + k
+            and self.pub_ready.get_subscription_count() >= 1 + k
+            and self.pub_report.get_subscription_count() >= 1 + k
             and self.sub_tick.get_publisher_count() >= 1
             and self.sub_end.get_publisher_count() >= 1
             and self.pub_alive.get_subscription_count() >= 1
-            and self.pub_resend.get_subscription_count() >= self.n
-            and all(pub.get_subscription_count() >= self.n for pub in self.kind_pubs.values())
+            and self.pub_resend.get_subscription_count() >= self.n + k
+            and all(pub.get_subscription_count() >= self.n + k for pub in self.kind_pubs.values())
             and all(sub.get_publisher_count() >= self.n for sub in self.kind_subs)
         )
 
@@ -332,6 +332,13 @@ def declare(node: Node) -> None:
         3600.0,
     )
     p("die_at_step", -1, "fault injection: SIGKILL this process on the tick of this step (-1: never)", -1)
+    p(
+        "observers",
+        0,
+        "readers beside the team (a recorder, a live view) each lockstep writer waits for",
+        0,
+        16,
+    )
 
 
 def agent_id_from_args(argv: list[str]) -> int | None:

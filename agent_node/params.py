@@ -17,6 +17,10 @@ from rclpy.node import Node
 INT_MAX = 2**31 - 1
 
 
+class ParameterError(ValueError):
+    """A bad node parameter; the text names it (the node exits with one line and code 2)."""
+
+
 def declare(
     node: Node,
     name: str,

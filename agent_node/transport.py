@@ -22,7 +22,7 @@ from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallba
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
 
 from ost_msgs_py import wire
-from ost_msgs_py.runtime import Acted, AgentReport, Ready, Resend, RunEnd, Tick
+from ost_msgs_py.runtime import Acted, AgentReport, Ready, Resend, RunEnd, RunInfo, Tick
 from ost_msgs_py.wire import MessageError
 from ost_ros import protocols
 from ost_ros.model import Scenario
@@ -40,6 +40,7 @@ READY = "ready"  # agent → world
 RUN_END = "run_end"  # world → all agents
 REPORTS = "reports"  # agent → world
 RESULT = "result"  # world → anyone (JSON of `ost sim --json`)
+RUN_INFO = "run_info"  # world → anyone: run id, scenario, stepping (recorders, live views)
 
 
 def message_topic(kind: type) -> str:
@@ -123,6 +124,7 @@ TOPICS: dict[str, tuple[QoSProfile, str]] = {
     RUN_END: (LATCHED_ALL_QOS, wire.type_name(RunEnd)),
     REPORTS: (LATCHED_ALL_QOS, wire.type_name(AgentReport)),
     RESULT: (RESULT_QOS, "std_msgs/msg/String"),
+    RUN_INFO: (LATCHED_ALL_QOS, wire.type_name(RunInfo)),
 }
 TICK_TYPE = wire.type_name(Tick)
 

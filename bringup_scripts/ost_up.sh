@@ -33,6 +33,12 @@ ROS:
   --namespace NS             the run's namespace (default ost: /ost/world, /ost/object_found, ...);
                              two teams in two namespaces share a domain without interfering
   --domain-id D              ROS_DOMAIN_ID (default: a free one in 10..99)
+watch:
+  --record FILE.mcap         record every topic of the run (rosbag2-style MCAP; ost record info,
+                             ost replay FILE --animate out.gif)
+  --foxglove [PORT]          live view: a Foxglove WebSocket server on ws://127.0.0.1:PORT
+                             (default 8765) streaming robots, objects and states
+  (on a terminal a progress line shows the step and the objects delivered)
 run:
   --run-dir DIR              logs, PIDs, result.json (default: a new /tmp/ost_run.XXXXXX)
   --json                     print the result as `ost sim --json` does
@@ -53,6 +59,7 @@ say() { echo "$me: $*" >&2; }
 
 agents="" objects="" seed="" scenario="" protocol="ccp" ci="1" interval="" width="" height="" nmax=""
 mute="" respawn=0 hosts=0 loss=0 discovery="multicast" kills=() failure_timeout=1.0 partition=equal coordination=distributed
+record="" foxglove=0
 domain="${ROS_DOMAIN_ID:-}" run_dir="" json=0 skip=true max_steps=0 timeout=0 background=0 stay=0 ns="ost"
 need() { [ $# -ge 2 ] && [ -n "$2" ] || die "$1 needs a value"; }
 int() { [[ "$2" =~ ^[0-9]+$ ]] || die "$1: expected a non-negative integer, got '$2'"; }
@@ -87,6 +94,10 @@ while [ $# -gt 0 ]; do
     --hosts) need "$@"; int "$1" "$2"; hosts="$2"; shift 2 ;;
     --loss) need "$@"; int "$1" "$2"; loss="$2"; shift 2 ;;
     --discovery) need "$@"; discovery="$2"; shift 2 ;;
+    --record) need "$@"; case "$2" in *.mcap) ;; *) die "--record: '$2' must end in .mcap" ;; esac
+      record="$2"; shift 2 ;;
+    --foxglove) if [ $# -ge 2 ] && [[ "$2" =~ ^[0-9]+$ ]]; then foxglove="$2"; shift 2; else foxglove=8765; shift; fi
+      [ "$foxglove" -ge 1 ] && [ "$foxglove" -le 65535 ] || die "--foxglove: port $foxglove is not in 1..65535" ;;
     --json) json=1; shift ;;
     --no-skip) skip=false; shift ;;
     --background) background=1; shift ;;
@@ -107,6 +118,10 @@ else
 fi
 [ -z "$agents" ] || [ "$agents" -ge 1 ] || die "--agents: must be at least 1"
 [ "$ci" -ge 1 ] || die "--ci: must be at least 1"
+if [ -n "$record" ]; then
+  [ -d "$(dirname "$record")" ] || die "--record: no such directory $(dirname "$record")"
+  record="$(cd "$(dirname "$record")" && pwd)/$(basename "$record")"
+fi
 [ -z "$domain" ] || [ "$domain" -le 232 ] || die "--domain-id: $domain is above 232"
 # What the protocol can run, from the registry (one line and exit code 2 if it cannot).
 check=(--coordination "$coordination"); [ -z "$mute" ] || check+=(--silence)
@@ -150,6 +165,8 @@ if [ "$background" = 1 ]; then
   [ -n "$domain" ] && fwd+=(--domain-id "$domain")
   [ "$skip" = false ] && fwd+=(--no-skip)
   [ "$json" = 1 ] && fwd+=(--json)
+  [ -n "$record" ] && fwd+=(--record "$record")
+  [ "$foxglove" -gt 0 ] && fwd+=(--foxglove "$foxglove")
   nohup "$0" "${fwd[@]}" > "$run_dir/ost_up.out" 2> "$run_dir/ost_up.log" < /dev/null &
   sup=$!
   echo $sup > "$run_dir/ost_up.pid"
@@ -246,6 +263,8 @@ print(" ".join(str(a.id) for a in s.agents))
 EOF
 )" || exit 2
 n="$(echo $ids | wc -w)"
+observers=0   # a recorder / live view: the run starts once every writer has matched it too
+{ [ -n "$record" ] || [ "$foxglove" -gt 0 ]; } && observers=1
 cat > "$run_dir/params.yaml" <<EOF
 /**:
   ros__parameters:
@@ -256,6 +275,7 @@ cat > "$run_dir/params.yaml" <<EOF
     interval: ${interval:-0}
     coordination: "$coordination"
     failure_timeout: $failure_timeout
+    observers: $observers
 EOF
 cat > "$run_dir/world_params.yaml" <<EOF
 /**:
@@ -268,6 +288,8 @@ cat > "$run_dir/world_params.yaml" <<EOF
     max_steps: $max_steps
     failure_timeout: $failure_timeout
     exit_when_done: $([ "$stay" = 1 ] && echo false || echo true)
+    observers: $observers
+    progress_file: "$run_dir/progress"
 EOF
 
 # ------------------------------------------------------------------ processes and teardown
@@ -311,6 +333,16 @@ if [ "$discovery" = server ]; then
   pids+=($!); names[$!]="discovery_server"; echo $! > "$run_dir/discovery_server.pid"
 fi
 nsarg=(-r "__ns:=/$ns")
+watch_pid=""
+if [ "$observers" -gt 0 ]; then
+  wargs=(-p "exit_when_done:=$([ "$stay" = 1 ] && echo false || echo true)")
+  [ -n "$record" ] && wargs+=(-p "record:=$record")
+  [ "$foxglove" -gt 0 ] && wargs+=(-p "foxglove_port:=$foxglove")
+  launch 0 "$bin/watch_node" --ros-args "${nsarg[@]}" "${wargs[@]}" > "$run_dir/watch.log" 2>&1 &
+  watch_pid=$!; pids+=($watch_pid); names[$watch_pid]="watch"; echo $watch_pid > "$run_dir/watch.pid"
+  [ -n "$record" ] && say "recording every topic of /$ns to $record"
+  [ "$foxglove" -gt 0 ] && say "live view: open ws://127.0.0.1:$foxglove in the Foxglove app (Open connection, Foxglove WebSocket)"
+fi
 launch 0 "$bin/world_node" --ros-args --params-file "$run_dir/world_params.yaml" "${nsarg[@]}" > "$run_dir/world.log" 2>&1 &
 world_pid=$!; pids+=($world_pid); names[$world_pid]="world"; echo $world_pid > "$run_dir/world.pid"
 slot=0
@@ -331,12 +363,22 @@ else
   say "started world + $n agents (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, namespace /$ns, run dir $run_dir)"
 fi
 
+shown=""
+show_progress() {   # a progress line on a terminal (quiet otherwise): step, objects delivered
+  [ -t 2 ] && [ "$stay" = 0 ] || return 0
+  local line; line="$(cat "$run_dir/progress" 2>/dev/null)" || return 0
+  [ -n "$line" ] && [ "$line" != "$shown" ] || return 0
+  shown="$line"; set -- $line
+  printf '\r\033[K%s: step %s, delivered %s/%s' "$me" "$1" "$2" "$3" >&2
+}
+end_progress() { [ -z "$shown" ] || printf '\r\033[K' >&2; shown=""; }
 started=0
 while :; do
   if [ "$started" = 0 ] && grep -q "agents ready; step 0" "$run_dir/world.log" 2>/dev/null; then
     started=1
     say "discovery complete: $n agents matched after $(elapsed_ms) ms"
   fi
+  show_progress
   if [ -f "$run_dir/result.json" ] && { [ "$stay" = 1 ] || ! kill -0 "$world_pid" 2>/dev/null; }; then
     break
   fi
@@ -361,6 +403,7 @@ while :; do
         unset 'pids[k]'; continue
       fi
       if [ "$rc" != 0 ] || [ ! -f "$run_dir/result.json" ]; then
+        end_progress
         say "${names[$p]} (pid $p) died with exit code $rc before the result; see $run_dir/${names[$p]}.log"
         tail -n 3 "$run_dir/${names[$p]}.log" >&2
         teardown; exit 1
@@ -373,6 +416,12 @@ while :; do
   fi
   sleep 0.1
 done
+end_progress
+if [ -n "$watch_pid" ] && [ "$stay" = 0 ]; then
+  # The recorder closes its file a moment after the result (samples still on their way).
+  for _ in $(seq 1 100); do kill -0 "$watch_pid" 2>/dev/null || break; sleep 0.1; done
+  [ -z "$record" ] || say "recorded $record: $(grep -o 'recorded [0-9]* messages on [0-9]* topics' "$run_dir/watch.log" | head -n 1)"
+fi
 [ "$stay" = 1 ] || teardown
 if [ "$json" = 1 ]; then
   "$bin/python" -m world_node.report "$run_dir/result.json" --json

@@ -2,14 +2,16 @@
 
     ros2 launch ost_ros team.launch.py agents:=4 objects:=8 seed:=1 [protocol:=hcp] [ci:=2]
     ros2 launch ost_ros team.launch.py scenario:=/path/s.yaml [namespace:=team_a]
-        [result_file:=/tmp/result.json]
+        [result_file:=/tmp/result.json] [record:=/tmp/run.mcap] [foxglove:=8765]
 
 The same processes and parameters as ``bringup_scripts/ost_up.sh`` (which stays the main
 bring-up: it also picks a free domain, cleans up and prints the result): with ``scenario`` empty
 the paper's random scenario is generated from agents/objects/seed (and width/height/nmax) into a
 temporary file, exactly as ``ost generate`` does. Launch ends when the world node exits (after
 the result, once the agents have left); the result is on ``<namespace>/result`` and, with
-``result_file``, in that file — the JSON of ``ost sim --json``.
+``result_file``, in that file — the JSON of ``ost sim --json``. ``record`` and ``foxglove`` start
+the watch node with the run (a recording for ``ost replay``, a live Foxglove view), counted as an
+observer that every node waits for before step 0.
 """
 
 from __future__ import annotations
@@ -39,6 +41,8 @@ ARGUMENTS = {
     "result_file": ("", "write the result JSON there ('': none)"),
     "event_skipping": ("true", "execute the agents' plans for quiet steps"),
     "max_steps": ("0", "step limit (0: the simulator's)"),
+    "record": ("", "record every topic of the run to this MCAP file ('': none)"),
+    "foxglove": ("0", "serve a live Foxglove view on this port (0: none)"),
 }
 
 
@@ -62,7 +66,20 @@ def _nodes(context: LaunchContext) -> list:
             f.write(dump_scenario(scenario))
         path, agents = f.name, 0  # the generated file has the team already
     ns = "/" + arg["namespace"].strip("/")
-    common = {"scenario": path, "agents": agents}
+    watch = []
+    if arg["record"] or int(arg["foxglove"]):
+        watched = {"record": arg["record"], "foxglove_port": int(arg["foxglove"])}
+        watch = [
+            Node(
+                package="ost_ros",
+                executable="watch_node",
+                name="watch",
+                namespace=ns,
+                output="screen",
+                parameters=[watched],
+            )
+        ]
+    common = {"scenario": path, "agents": agents, "observers": len(watch)}
     world = Node(
         package="ost_ros",
         executable="world_node",
@@ -100,7 +117,7 @@ def _nodes(context: LaunchContext) -> list:
     ]
     # The run is over when the world leaves (it waits for the agents to read the result).
     done = RegisterEventHandler(OnProcessExit(target_action=world, on_exit=[EmitEvent(event=Shutdown())]))
-    return [world, *team, done]
+    return [*watch, world, *team, done]
 
 
 def generate_launch_description() -> LaunchDescription:

@@ -12,6 +12,7 @@
   agent-to-agent traffic;
 - :class:`Resend`: recovery — an agent whose tick waited too long for some peers' batches asks
   them to publish those again (the world likewise re-sends a tick whose action does not come);
+- :class:`RunInfo`: the world's description of its run (latched), for whoever follows it;
 - :class:`RunEnd`: the world's clock stopped (every object delivered and every agent home, or
   the step limit); agents answer with an :class:`AgentReport` (what only agents know: the
   schedule they hold, predicted makespan, coordinations, warnings), from which the world builds
@@ -187,4 +188,19 @@ class AgentReport:
     version: int = RUNTIME_VERSION
 
 
-RUNTIME_MESSAGES: tuple[type, ...] = (Ready, Tick, Acted, Resend, RunEnd, AgentReport)
+@dataclass(frozen=True)
+class RunInfo:
+    """World → anyone (latched): the run's id, scenario and stepping rule — with the run's
+    :class:`Ready`, :class:`Tick`, :class:`Acted` and :class:`AgentReport` messages enough to
+    rebuild the run step by step without its nodes (``ost replay``, the live view)."""
+
+    TYPE: ClassVar[str] = "run_info"
+    run: str
+    scenario: str  # the scenario as YAML (``dump_scenario``)
+    fingerprint: str
+    event_skipping: bool
+    max_steps: int  # 0: the simulator's step limit
+    version: int = RUNTIME_VERSION
+
+
+RUNTIME_MESSAGES: tuple[type, ...] = (Ready, Tick, Acted, Resend, RunEnd, AgentReport, RunInfo)

@@ -26,6 +26,7 @@ VERB_MODULES: tuple[str, ...] = (
     "ost_ros.commands.ros",
     "ost_ros.commands.study",
     "ost_ros.commands.faults",
+    "ost_ros.commands.watch",
 )
 
 

@@ -6,15 +6,17 @@ for tests, benchmarks, and for checking a new protocol's planner before starting
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from agent_node.runtime import AgentRuntime
 from ost_msgs_py import wire as ros_wire
-from ost_msgs_py.runtime import Acted, AgentReport, RunEnd, Sample
+from ost_msgs_py.runtime import Acted, AgentReport, Ready, RunEnd, RunInfo, Sample
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Scenario
 from ost_ros.protocols import make_agents
 from ost_ros.result import RunResult
+from ost_ros.scenario import dump_scenario
 from world_node.runtime import WorldRuntime
 
 
@@ -31,13 +33,19 @@ def run_lockstep(
     skipping: bool = True,
     kill: dict[int, int] | None = None,
     settings: Any = None,
+    tap: Callable[[Any], None] | None = None,
 ) -> tuple[RunResult, WorldRuntime]:
     """The run and the world's runtime (its figures). ``kill`` = {agent: step}: the agent's
     process is gone from the first tick at or after that step (with skipping, the world may be
-    past it: then it fails later, as over DDS)."""
+    past it: then it fails later, as over DDS). ``tap(message)`` sees every message the world
+    sends or takes, in the order it does — what a recorder of the run would hold."""
     ids = tuple(a.id for a in scenario.agents)
     rts = {a.id: AgentRuntime(a, ids, lookahead) for a in make_agents(scenario, protocol, policy, settings)}
     world = WorldRuntime(scenario, skipping=skipping, protocol=protocol, organisation=policy.organisation)
+    see = tap or (lambda _msg: None)
+    see(wire(RunInfo(world.run, dump_scenario(scenario), "", skipping, 0)))
+    for a in ids:
+        see(wire(Ready(a, protocol, "", policy.organisation)))
     nxt: list[Any] | RunEnd = world.start()
     kill = dict(kill or {})
     while True:
@@ -45,6 +53,8 @@ def run_lockstep(
             if not isinstance(nxt, RunEnd) and world.world.t >= t:
                 del rts[a], kill[a]
                 assert world.fail(a) is None  # the survivors still have to act
+        for m in [nxt] if isinstance(nxt, RunEnd) else nxt:
+            see(wire(m))
         for r in rts.values():
             if isinstance(nxt, RunEnd):
                 r.accept_end(wire(nxt))
@@ -55,6 +65,8 @@ def run_lockstep(
             for r in rts.values():
                 r.accept_sample(wire(b))
         for m in out:
+            if isinstance(m, Acted | AgentReport):
+                see(wire(m))
             if isinstance(m, Acted):
                 world.accept_acted(wire(m))
             elif isinstance(m, AgentReport):

@@ -19,6 +19,7 @@ over: the notice is news to the agents, like a broadcast.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from ost_msgs_py.messages import Action, AgentLost, Observation
@@ -51,6 +52,9 @@ class WorldRuntime:
     aborted: str | None = None  # why the run was ended early (a failure the protocol cannot take)
     _gone: set[int] = field(default_factory=set)  # lost after the run ended (no report coming)
     _notices: dict[int, AgentLost] = field(default_factory=dict)  # what every later tick says
+    # Called after every step the world executes, round trip or skipped: (world, actions) — the
+    # step engine's hook (frames, timelines of a run followed live or replayed). Not pickled.
+    on_step: Callable[[World, list[Action]], None] | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         self.world = World(self.scenario)
@@ -135,7 +139,7 @@ class WorldRuntime:
         last = self.world.t
         sent = {x.action.agent: x.sent for x in acted if x.sent > 0}  # the agents' barrier counts
         self.messages += sum(sent.values())
-        self.world.apply([x.action for x in acted])
+        self._apply([x.action for x in acted])
         self.round_trips += 1
         news = last in self.failed.values()  # a failure notice: the agents must hear it
         if self.skipping and not sent and not news and acted:
@@ -153,8 +157,18 @@ class WorldRuntime:
                 if not _expected(self.world.observe(agent), step):
                     return
                 actions.append(Action(agent, t, step.kind, step.direction, step.object, step.state))
-            self.world.apply(actions)
+            self._apply(actions)
             self.skipped += 1
+
+    def _apply(self, actions: list[Action]) -> None:
+        self.world.apply(actions)
+        if self.on_step is not None:
+            self.on_step(self.world, actions)
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["on_step"] = None  # a checkpoint holds the truth, not who watches it
+        return state
 
     def _next(self, last: int, sent: dict[int, int]) -> list[Tick] | RunEnd:
         w = self.world

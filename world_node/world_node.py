@@ -45,11 +45,12 @@ from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
 from agent_node import transport as tp
+from agent_node.params import ParameterError
 from agent_node.params import declare as declare_param
 from ost_msgs_py import wire
-from ost_msgs_py.runtime import Acted, AgentReport, Ready, RunEnd, Tick
+from ost_msgs_py.runtime import Acted, AgentReport, Ready, RunEnd, RunInfo, Tick
 from ost_ros.bounds import lower_bound
-from ost_ros.scenario import ScenarioError, load_scenario, with_team
+from ost_ros.scenario import ScenarioError, dump_scenario, load_scenario, with_team
 from world_node.markers import world_markers
 from world_node.runtime import ProtocolViolation, WorldRuntime
 
@@ -96,6 +97,14 @@ class WorldNode(Node):
             0.0,
             3600.0,
         ),
+        (
+            "observers",
+            0,
+            "readers beside the team (a recorder, a live view) the start waits for on every tick topic",
+            0,
+            16,
+        ),
+        ("progress_file", "", "write 'step delivered objects' there as the run goes ('': none)", None, None),
     )
 
     def __init__(self):
@@ -105,7 +114,7 @@ class WorldNode(Node):
         p = {name: self.get_parameter(name).value for name, *_ in self.PARAMETERS}
         if not p["scenario"]:
             raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
-        for name in ("agents", "max_steps", "marker_every", "failure_timeout"):
+        for name in ("agents", "max_steps", "marker_every", "failure_timeout", "observers"):
             if p[name] < 0:
                 raise ParameterError(f"{name}: {p[name]} must not be negative")
         try:
@@ -124,6 +133,9 @@ class WorldNode(Node):
         self.marker_every = p["marker_every"]
         self.exit_when_done = p["exit_when_done"]
         self.linger = p["linger"]
+        self.observers = p["observers"]
+        self.progress_file = p["progress_file"]
+        self.progress_shown: tuple[int, int] | None = None
         self.ids = self.rt.ids
         self.throttle = tp.Throttle(self.get_logger())
         self.ready: dict[int, Ready] = {}
@@ -152,6 +164,20 @@ class WorldNode(Node):
             wire.ros_type(RunEnd), tp.RUN_END, tp.LATCHED_ALL_QOS, event_callbacks=pub()
         )
         self.pub_result = self.create_publisher(String, tp.RESULT, tp.RESULT_QOS)
+        self.pub_info = self.create_publisher(
+            wire.ros_type(RunInfo), tp.RUN_INFO, tp.LATCHED_ALL_QOS, event_callbacks=pub()
+        )
+        self.pub_info.publish(
+            wire.to_ros(
+                RunInfo(
+                    self.rt.run,
+                    dump_scenario(scenario),
+                    self.fingerprint,
+                    self.rt.skipping,
+                    self.rt.max_steps or 0,
+                )
+            )
+        )
         self.sub_acted = self.create_subscription(
             wire.ros_type(Acted), tp.ACTED, self.on_acted, q, event_callbacks=sub()
         )
@@ -254,7 +280,7 @@ class WorldNode(Node):
     def try_start(self) -> None:
         if self.started or (len(self.ready) < len(self.ids) and not self.resumed):
             return
-        ticks = [i for i in self.rt.live if self.pub_tick[i].get_subscription_count() < 1]
+        ticks = [i for i in self.rt.live if self.pub_tick[i].get_subscription_count() < 1 + self.observers]
         writers = self.sub_acted.get_publisher_count()
         unseen = sorted(set(self.rt.live) - self.alive_seen) if self.sub_alive else []
         if ticks or writers < len(self.rt.live) or unseen:
@@ -286,6 +312,7 @@ class WorldNode(Node):
 
     def on_timer(self) -> None:
         now = time.monotonic()
+        self.write_progress()
         if not self.started:
             self.try_start()
             return
@@ -351,6 +378,22 @@ class WorldNode(Node):
         self.pub_clock.publish(Clock(clock=stamp))
         if self.marker_every and (self.ticks_sent % self.marker_every == 0 or self.rt.ended):
             self.pub_markers.publish(world_markers(self.rt.world, stamp))
+
+    def write_progress(self) -> None:
+        """'step delivered objects' for a progress line (ost_up.sh on a terminal), when it changed."""
+        if not self.progress_file:
+            return
+        w = self.rt.world
+        now = (w.t, sum(o.delivered is not None for o in w.objects.values()))
+        if now == self.progress_shown:
+            return
+        self.progress_shown = now
+        tmp = f"{self.progress_file}.tmp"
+        try:
+            Path(tmp).write_text(f"{now[0]} {now[1]} {len(w.objects)}\n")
+            os.replace(tmp, self.progress_file)
+        except OSError as exc:
+            self.throttle.note(("progress", "world"), f"progress_file: cannot write ({exc.strerror})")
 
     def on_acted(self, msg) -> None:
         a = tp.from_ros_or_warn(msg, self.sub_acted.topic_name, self.throttle)
@@ -459,6 +502,7 @@ class WorldNode(Node):
                 self.get_logger().error(f"result_file: cannot write {self.result_file} ({exc.strerror})")
         self.pub_result.publish(String(data=text))
         self.result_at = time.monotonic()
+        self.write_progress()
         wall = self.result_at - self.t_start
         stats = {
             "wall_s": round(wall, 3),
@@ -473,10 +517,6 @@ class WorldNode(Node):
         if self.result_file:
             with contextlib.suppress(OSError):  # the stats are a nicety; the result is written
                 Path(self.result_file + ".transport.json").write_text(json.dumps(stats) + "\n")
-
-
-class ParameterError(ValueError):
-    """A bad node parameter; the text names it."""
 
 
 def main(args=None) -> int:

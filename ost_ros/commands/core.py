@@ -173,6 +173,7 @@ def add_sim_parser(sub) -> None:
     )
     p.add_argument("--json", action="store_true", help="print the full result as JSON")
     p.add_argument("--plot", metavar="PNG", help="also draw the map and every agent's timeline")
+    add_animate_arguments(p)
     p.add_argument(
         "--progress",
         action=argparse.BooleanOptionalAction,
@@ -221,8 +222,13 @@ def cmd_sim(args: argparse.Namespace) -> int:
             check_failures(scenario, args.protocol, failures, policy)
         except ValueError as exc:
             raise UsageError(f"--fail: {exc}") from None
+    if args.animate:
+        check_animation(args)
     engine = _sim_engine(args, scenario, policy, failures)
     hooks, bar, timeline = _step_hooks(args, scenario, engine)
+    recorder = frame_recorder(args, scenario)
+    if recorder is not None:
+        hooks.append(recorder)
     try:
         result = simulate(
             scenario,
@@ -245,6 +251,8 @@ def cmd_sim(args: argparse.Namespace) -> int:
             plot_run(scenario, result, timeline, args.plot)
         except OSError as exc:
             raise UsageError(f"{args.plot}: cannot write ({exc.strerror})") from None
+    if recorder is not None:
+        write_animation(args, scenario, result, recorder)
     print(json.dumps(result.to_dict(), indent=1) if args.json else result.summary())
     return 0 if result.completed else 1
 
@@ -287,7 +295,9 @@ def _sim_engine(
         if needs_steps:
             return "step"
     if args.engine == "auto":
-        return "step" if (args.plot or args.progress) else choose_engine(scenario)
+        return "step" if (args.plot or args.animate or args.progress) else choose_engine(scenario)
+    if args.engine == "event" and args.animate:
+        raise UsageError("--animate: the animation needs every step (--engine step or auto)")
     return str(args.engine)
 
 
@@ -324,6 +334,73 @@ def _each(hooks: list[StepHook]) -> StepHook:
             hook(world, actions)
 
     return on_step
+
+
+# ----------------------------------------------------------------------------- animation
+
+
+def add_animate_arguments(p: argparse.ArgumentParser) -> None:
+    """``--animate FILE [--fps F] [--every K]`` (``ost sim``, ``ost replay``)."""
+    p.add_argument(
+        "--animate",
+        metavar="GIF|MP4",
+        help="also write an animation of the run (robots by state, objects, groups, deliveries)",
+    )
+    p.add_argument("--fps", type=positive, default=20, help="animation frames per second (20)")
+    p.add_argument(
+        "--every",
+        type=positive,
+        help="one frame every K steps, plus every lift and delivery (default: about 400 frames)",
+    )
+
+
+def check_animation(args: argparse.Namespace) -> None:
+    """A bad --animate target ends before the run, in one line."""
+    from ost_ros.watch.animate import AnimationError, check_target
+
+    try:
+        check_target(args.animate)
+    except AnimationError as exc:
+        raise UsageError(f"--animate: {exc}") from None
+
+
+def frame_recorder(args: argparse.Namespace, scenario: Scenario):
+    """The step hook that keeps the animation's frames (None without --animate)."""
+    if not getattr(args, "animate", None):
+        return None
+    from ost_ros.watch.frames import FrameRecorder
+
+    return FrameRecorder(scenario, every=args.every)
+
+
+def write_animation(args: argparse.Namespace, scenario: Scenario, result: Any, recorder: Any) -> None:
+    """Draw the recorded frames into ``args.animate`` (a progress bar on a terminal)."""
+    from ost_ros.watch.animate import AnimationError, animate
+
+    frames = recorder.finish()
+    bar = None
+    if sys.stderr.isatty() if args.progress is None else args.progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(frames), desc="animation", unit="frame", file=sys.stderr, leave=False)
+    try:
+        written = animate(
+            scenario,
+            result,
+            frames,
+            args.animate,
+            fps=args.fps,
+            progress=(lambda i, n: bar.update(1)) if bar is not None else None,
+        )
+    except AnimationError as exc:
+        raise UsageError(f"--animate: {exc}") from None
+    finally:
+        if bar is not None:
+            bar.close()
+    print(
+        f"animation: {written.path} ({written.frames} frames, {written.bytes / 1e6:.1f} MB)",
+        file=sys.stderr,
+    )
 
 
 # ----------------------------------------------------------------------------- schedule

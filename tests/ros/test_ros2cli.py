@@ -16,6 +16,7 @@ import os
 import shutil
 import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -94,7 +95,7 @@ def test_interface_and_package_are_known(domain):
     assert {"ost_msgs/msg/ObjectFound", "ost_msgs/msg/Selection", "ost_msgs/msg/Tick"} <= set(kinds)
     exes = ros2(domain, "pkg", "executables", "ost_ros")
     assert exes.returncode == 0, exes.stderr
-    assert exes.stdout.split("\n")[:2] == ["ost_ros agent_node", "ost_ros world_node"]
+    assert exes.stdout.split("\n")[:3] == ["ost_ros agent_node", "ost_ros watch_node", "ost_ros world_node"]
 
 
 def test_topics_echo_params_and_ros2_run_on_a_live_run(tmp_path, procs, domain):
@@ -187,6 +188,7 @@ def test_ros2_launch_runs_the_team(tmp_path, domain):
             "ci:=2",
             "protocol:=hcp",
             f"result_file:={result}",
+            f"record:={tmp_path / 'run.mcap'}",
         ],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
@@ -204,3 +206,11 @@ def test_ros2_launch_runs_the_team(tmp_path, domain):
     scenario = generate_scenario(4, 6, 1, Grid(30, 12), 3)
     assert json.loads(Path(result).read_text()) == reference(scenario, "hcp", CoordinationPolicy(ci=2))
     assert "Traceback" not in out
+    # launched with record:=, the watch node's recording rebuilds the same result
+    replay = subprocess.run(
+        [sys.executable, "-m", "ost_ros", "replay", str(tmp_path / "run.mcap"), "--json"],
+        capture_output=True,
+        text=True,
+    )
+    assert replay.returncode == 0, replay.stderr
+    assert json.loads(replay.stdout) == json.loads(Path(result).read_text())

@@ -1,0 +1,3 @@
+"""Watching a run: frames recorded by a step hook (:mod:`.frames`) and the animation drawn from
+them (:mod:`.animate`). ROS-free; recordings (MCAP) live in :mod:`ost_msgs_py.bag` and their
+replay in :mod:`world_node.follow`."""
