@@ -196,7 +196,8 @@ class AgentRunner:
             and self.pub_report.get_subscription_count() >= 1 + k
             and self.sub_tick.get_publisher_count() >= 1
             and self.sub_end.get_publisher_count() >= 1
-            and self.pub_alive.get_subscription_count() >= 1
+            # its one sample must reach the world, not only an observer that matched first
+            and self.pub_alive.get_subscription_count() >= 1 + k
             and self.pub_resend.get_subscription_count() >= self.n + k
             and all(pub.get_subscription_count() >= self.n + k for pub in self.kind_pubs.values())
             and all(sub.get_publisher_count() >= self.n for sub in self.kind_subs)

@@ -4,7 +4,7 @@
 
 1. The demo scenario (500x200, N=10, M=20, seed 1), in-process: the step engine bare and with
    the frame recorder, then the GIF and the MP4 drawn from the frames (time, frames, size).
-2. A long run (one robot sweeping 500x200 alone, M=5, > 10^5 steps): frames kept and render time —
+2. A long run (one robot sweeping 1000x320 alone, M=5: over 10^5 steps): frames kept and render time —
    the frame count stays near the recorder's target however long the run.
 3. Over DDS (ost_up.sh, the demo scenario): wall time without and with ``--record``, run-to-run
    interleaved; the recording's size and message count; ``ost replay`` time; the replay's result
@@ -113,7 +113,7 @@ def main() -> int:
             tmp,
             args.repeat,
         )
-        in_process(generate_scenario(1, 5, 1, Grid(500, 200), 1), "long run (N=1, M=5, 500x200)", tmp, 1)
+        in_process(generate_scenario(1, 5, 1, Grid(1000, 320), 1), "long run (N=1, M=5, 1000x320)", tmp, 1)
         if not args.no_dds:
             dds(tmp, args.repeat)
     return 0

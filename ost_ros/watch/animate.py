@@ -23,7 +23,8 @@ from ost_ros.result import RunResult
 from ost_ros.watch.frames import FAILED_STATE, Frame
 
 FORMATS = (".gif", ".mp4")
-LABEL_OBJECTS_UP_TO = 40  # objects carry their n_i as text on runs this small
+# Objects carry their n_i as text on runs this small (text is the costliest part of a frame).
+LABEL_OBJECTS_UP_TO = 12
 
 
 class AnimationError(ValueError):
@@ -194,7 +195,8 @@ class _Scene:
         self.found = dict(result.found)
         self.required = np.array([o.required for o in scenario.objects])
         sizes = 10 + 6 * self.required
-        self.objects = ax.scatter([], [], s=[], zorder=2, edgecolors="#7f0000", linewidths=0.4)
+        # objects are squares, robots circles
+        self.objects = ax.scatter([], [], s=[], marker="s", zorder=2, edgecolors="#7f0000", linewidths=0.4)
         self.object_sizes = sizes
         self.robots = ax.scatter([], [], s=34, zorder=4, edgecolors="k", linewidths=0.7)
         self.labels = (
@@ -215,9 +217,11 @@ class _Scene:
             Line2D([], [], ls="", marker="o", mfc=c, mec="k", mew=0.5, label=s.lower())
             for s, c in self.palette.items()
         ] + [
-            Line2D([], [], ls="", marker="o", mfc="#d9d9d9", mec="#7f0000", label="object, not found yet"),
-            Line2D([], [], ls="", marker="o", mfc="#de2d26", mec="#7f0000", label="found"),
-            Line2D([], [], ls="", marker="o", mfc="#31a354", mec="#7f0000", label="carried (k/n robots)"),
+            Line2D([], [], ls="", marker="s", mfc="#d9d9d9", mec="#7f0000", label="object, not found yet"),
+            Line2D([], [], ls="", marker="s", mfc="#de2d26", mec="#7f0000", label="found"),
+            Line2D(
+                [], [], ls="", marker="s", mfc="#31a354", mec="#7f0000", label="held/carried (k/n robots)"
+            ),
             Line2D([], [], ls="", marker="x", color="#3182bd", label="destination"),
         ]
         self.fig.legend(
