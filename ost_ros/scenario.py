@@ -40,6 +40,11 @@ class ScenarioError(FieldError):
 # ----------------------------------------------------------------------------- building
 
 
+# The largest grid a run can hold: sweeps (agents, engines, the bound) are kept cell by cell, about
+# 11 bytes per grid cell in all (10 000 x 10 000: 1.1 GB peak, 47 s for ost sim; README).
+MAX_CELLS = 10**9
+
+
 def build_scenario(
     grid: Grid,
     objects: list[ObjectSpec] | tuple[ObjectSpec, ...],
@@ -53,6 +58,11 @@ def build_scenario(
     else ``n_agents`` (with the default partition); default bases are the subareas' sweep starts."""
     if grid.width < 1 or grid.height < 1:
         raise ScenarioError(f"grid: size must be positive, got {grid.width}x{grid.height}")
+    if grid.cells > MAX_CELLS:
+        raise ScenarioError(
+            f"grid: {grid.width}x{grid.height} has {grid.cells:,} cells, more than the {MAX_CELLS:,} a "
+            "run can hold (every robot's sweep is kept cell by cell, so memory grows with the area)"
+        )
     count = _team_size(agents, partition, n_agents)
     partition, areas = _partition(grid, count, partition)
     if agents is None:

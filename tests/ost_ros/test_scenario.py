@@ -5,6 +5,7 @@ import yaml
 
 from ost_ros.model import Grid
 from ost_ros.scenario import (
+    MAX_CELLS,
     ScenarioError,
     dump_scenario,
     generate_objects,
@@ -127,3 +128,19 @@ def test_generation_limits():
         generate_objects(10, 0, Grid(3, 3))
     with pytest.raises(ScenarioError, match="nmax: 10 exceeds the team of 4 agents"):
         generate_scenario(4, 3, 0)
+
+
+def test_grids_beyond_what_a_run_can_hold_are_refused_at_once():
+    # 10^5 x 10^5 used to end in a MemoryError after a minute (sweeps are kept cell by cell)
+    for make in (
+        lambda: generate_scenario(10, 20, 1, Grid(100_000, 100_000)),
+        lambda: scenario_from_dict(
+            {"grid": {"width": 100_000, "height": 100_000}, "partition": [5, 2], "objects": []}
+        ),
+    ):
+        with pytest.raises(ScenarioError, match=r"grid: 100000x100000 has 10,000,000,000 cells, more than"):
+            make()
+    largest = scenario_from_dict(
+        {"grid": {"width": 40_000, "height": 25_000}, "partition": [5, 2], "objects": []}
+    )
+    assert largest.grid.cells == MAX_CELLS
