@@ -260,11 +260,14 @@ class BagInfo:
 
 
 def _size(n: int) -> str:
-    for unit in ("B", "KiB", "MiB", "GiB"):
-        if n < 1024 or unit == "GiB":
-            return f"{n:.1f} {unit}" if unit != "B" else f"{n} B"
-        n /= 1024  # type: ignore[assignment]
-    return f"{n} B"
+    if n < 1024:
+        return f"{n} B"
+    value = float(n)
+    for unit in ("KiB", "MiB"):
+        value /= 1024
+        if value < 1024:
+            return f"{value:.1f} {unit}"
+    return f"{value / 1024:.1f} GiB"
 
 
 def _reader(f: BinaryIO, path: str | Path):
@@ -354,6 +357,11 @@ def ros_class(type_name: str) -> Any:
 
 def decode(rec: Recorded) -> Any:
     """A recorded message as its ROS message (rclpy's CDR deserialiser)."""
+    return decode_bytes(rec.type_name, rec.data)
+
+
+def decode_bytes(type_name: str, data: bytes) -> Any:
+    """CDR bytes of ``pkg/msg/Name`` as its ROS message."""
     from rclpy.serialization import deserialize_message
 
-    return deserialize_message(rec.data, ros_class(rec.type_name))
+    return deserialize_message(data, ros_class(type_name))

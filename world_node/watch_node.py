@@ -141,7 +141,7 @@ class WatchNode(Node):
     def follow(self, topic: str, type_name: str, data: bytes) -> None:
         assert self.follower is not None
         try:
-            msg = wire.from_ros(bag.decode(bag.Recorded(topic, type_name, 0, data)))
+            msg = wire.from_ros(bag.decode_bytes(type_name, data))
             self.follower.feed(msg)
         except (wire.MessageError, FollowError) as exc:
             self.throttle.warn(topic, "?", str(exc))

@@ -174,12 +174,7 @@ def add_sim_parser(sub) -> None:
     p.add_argument("--json", action="store_true", help="print the full result as JSON")
     p.add_argument("--plot", metavar="PNG", help="also draw the map and every agent's timeline")
     add_animate_arguments(p)
-    p.add_argument(
-        "--progress",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="progress bar on stderr (default: when stderr is a terminal)",
-    )
+    add_progress_argument(p)
 
 
 def add_protocol_options(p: argparse.ArgumentParser) -> None:
@@ -351,6 +346,16 @@ def add_animate_arguments(p: argparse.ArgumentParser) -> None:
         "--every",
         type=positive,
         help="one frame every K steps, plus every lift and delivery (default: about 400 frames)",
+    )
+
+
+def add_progress_argument(p: argparse.ArgumentParser) -> None:
+    """``--progress/--no-progress``: a bar on stderr (default: when stderr is a terminal)."""
+    p.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="progress bar on stderr (default: when stderr is a terminal)",
     )
 
 

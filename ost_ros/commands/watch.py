@@ -14,7 +14,13 @@ import json
 import sys
 
 from ost_ros.commands.args import OneLineParser, leaf
-from ost_ros.commands.core import add_animate_arguments, check_animation, frame_recorder, write_animation
+from ost_ros.commands.core import (
+    add_animate_arguments,
+    add_progress_argument,
+    check_animation,
+    frame_recorder,
+    write_animation,
+)
 from ost_ros.errors import UsageError
 
 
@@ -42,12 +48,7 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="print the rebuilt result as JSON")
     p.add_argument("--plot", metavar="PNG", help="also draw the map and every robot's timeline")
     add_animate_arguments(p)
-    p.add_argument(
-        "--progress",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="progress bar while drawing (default: when stderr is a terminal)",
-    )
+    add_progress_argument(p)
 
 
 def cmd_info(args: argparse.Namespace) -> int:
