@@ -84,10 +84,6 @@ class RunFollower:
             raise FollowError(f"run_info: {exc}") from None
         self.info = info
 
-    @property
-    def started(self) -> bool:
-        return self.rt is not None
-
     def _start(self) -> bool:
         assert self.info is not None and self.scenario is not None
         ids = [a.id for a in self.scenario.agents]
@@ -173,16 +169,6 @@ class RunFollower:
             except ProtocolViolation:
                 self.ignored += 1
         self._reports.clear()
-
-    @property
-    def step(self) -> int:
-        """The step the rebuilt world is at (0 before the start)."""
-        return self.rt.world.t if self.rt is not None else 0
-
-    @property
-    def complete(self) -> bool:
-        """The run ended and every surviving agent's report is in."""
-        return self.rt is not None and self.rt.ended is not None and not self.rt.missing_reports
 
     def result(self) -> RunResult:
         """The rebuilt result, as the world node publishes it (lower bound included)."""
