@@ -11,13 +11,16 @@ event skipping; 0 = off); every protocol's own options (the registry's, e.g. NCP
 negotiator sends no moves; -1 = never), ``failure_timeout`` (s, the liveliness lease offered
 on ``/ost/agent_<id>/alive``: the world declares this robot failed once its process has been
 gone that long) and ``die_at_step`` (fault injection: the process SIGKILLs itself on the first
-tick of that step or later; -1 = never). The agent is built by its protocol's factory (the
+tick of that step or later; -1 = never), ``keys`` (the run's key directory, ``ost keys make``:
+every message it sends is signed with its own key and every one it receives checked; or
+``insecure`` true: none). The agent is built by its protocol's factory (the
 registry) and runs unchanged: the node only orders its calls (:mod:`agent_node.runtime`) and
 moves messages.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
 import signal
@@ -25,6 +28,7 @@ import sys
 
 import rclpy
 import yaml
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import String
@@ -45,6 +49,8 @@ from ost_ros.team import TeamInfo
 WORLD_LOST_S = 10.0
 # A tick held this long for peers' step messages is reported (whose are missing).
 STALL_S = 5.0
+# Peers' signed samples kept for relaying: the newest steps (the runtime relays from its last 3).
+RELAY_STEPS = 8
 
 
 class AgentNode(Node):
@@ -138,6 +144,12 @@ class AgentRunner:
         self.held_since: float | None = None
         self.throttle = tp.Throttle(node.get_logger())
         me = runtime.me
+        self.guard = tp.node_auth(node.get_parameter("keys").value, node.get_parameter("insecure").value, me)
+        # Peers' samples as received (signed by them): what this agent relays for a peer that a
+        # third one lacks (Resend) must carry the peer's own signature. The newest steps only.
+        self.originals: dict[int, dict[tuple[int, int], object]] = {}
+        self.report_sent: AgentReport | None = None
+        self.result_seen = False
         q = tp.LOCKSTEP_QOS
         self.tick_topic = tp.tick_topic(me)
         pub, sub = tp.no_events_pub, tp.no_events_sub
@@ -204,13 +216,13 @@ class AgentRunner:
         )
 
     def on_timer(self) -> None:
+        self.leave_if_reported()
         if not self.ready_sent:
             if self.matched():
                 # One sample asserts this robot's liveliness at once (the world waits for it)
                 self.pub_alive.publish(String(data=f"agent {self.rt.me}"))
-                self.pub_ready.publish(
-                    wire.to_ros(Ready(self.rt.me, self.protocol, self.fingerprint, self.organisation))
-                )
+                ready = Ready(self.rt.me, self.protocol, self.fingerprint, self.organisation)
+                self.guard.publish(self.pub_ready, wire.to_ros(ready))
                 self.ready_sent = True
                 self.world_seen = True
                 self.node.get_logger().info(f"ready: {self.n} agents and the world matched")
@@ -221,9 +233,8 @@ class AgentRunner:
         if held is not None and held[1]:
             self.held_since = self.held_since or now
             if now - self.held_since > tp.RESEND_S and now - (self.resent_at or 0.0) > tp.RESEND_S:
-                self.pub_resend.publish(
-                    wire.to_ros(Resend(self.rt.me, self.rt.last, held[1], self.rt.run or ""))
-                )
+                resend = Resend(self.rt.me, self.rt.last, held[1], self.rt.run or "")
+                self.guard.publish(self.pub_resend, wire.to_ros(resend))
                 self.resent_at = now
             if now - self.held_since > STALL_S:
                 self.throttle.note(
@@ -252,15 +263,22 @@ class AgentRunner:
             self.throttle.warn(topic, f"agent {sample.message.sender}", why)
         for out in self.rt.progress():
             if isinstance(out, Sample):
-                self.kind_pubs[type(out.message)].publish(wire.to_ros(out))
+                pub = self.kind_pubs[type(out.message)]
+                original = self.originals.get(out.step, {}).get((out.message.sender, out.seq))
+                if out.message.sender != self.rt.me and original is not None:
+                    pub.publish(original)  # a peer's sample relayed: as it signed it
+                else:
+                    self.guard.publish(pub, wire.to_ros(out))
             elif isinstance(out, Acted):
-                self.pub_acted.publish(wire.to_ros(out))
+                self.guard.publish(self.pub_acted, wire.to_ros(out))
             else:
-                self.pub_report.publish(wire.to_ros(out))
+                if self.report_sent is None:  # the drops so far, fixed: a re-sent report is the same
+                    self.report_sent = dataclasses.replace(out, dropped=tuple(self.guard.counts().values()))
+                self.guard.publish(self.pub_report, wire.to_ros(self.report_sent))
                 self.node.get_logger().info(f"run ended; report sent ({self.rt.sent} messages)")
 
     def _feed(self, msg, topic: str, accept) -> None:
-        m = tp.from_ros_or_warn(msg, topic, self.throttle)
+        m = tp.from_ros_or_warn(msg, topic, self.throttle, self.guard)
         if m is None:
             return
         try:
@@ -268,6 +286,10 @@ class AgentRunner:
         except ProtocolViolation as exc:
             self.throttle.warn(topic, wire.sender_of(msg), str(exc))
             return
+        if self.guard.secure and isinstance(m, Sample) and m.message.sender != self.rt.me:
+            self.originals.setdefault(m.step, {})[(m.message.sender, m.seq)] = msg
+            while len(self.originals) > RELAY_STEPS:
+                del self.originals[min(self.originals)]
         self._progress()
 
     def on_tick(self, msg) -> None:
@@ -291,11 +313,26 @@ class AgentRunner:
     def on_result(self, msg: String) -> None:
         # The world has every report: this agent's job is over. A result before this agent
         # finished: the world ended the run early (a failure its protocol cannot recover from).
+        # The result is a display topic (std_msgs/String, unsigned): it never ends this agent's
+        # part before its report is with the world (on_timer), and in a secure run an early
+        # one is not believed — the agent leaves once the world is gone.
         if self.rt.finished:
-            self.done = True
-        elif self.rt.run is not None:
+            self.result_seen = True
+            self.leave_if_reported()
+        elif self.rt.run is not None and not self.guard.secure:
             self.node.get_logger().error("the world ended the run before this agent finished; exiting")
             self.exit_code, self.done = 1, True
+        elif self.rt.run is not None:
+            self.throttle.note(
+                (tp.RESULT, "result"),
+                "a result before this agent finished: not believed (unsigned); "
+                f"leaving if the world is gone for {WORLD_LOST_S:.0f} s",
+            )
+
+    def leave_if_reported(self) -> None:
+        """After the result: leave once every reader of the report has acknowledged it."""
+        if self.result_seen and self.pub_report.wait_for_all_acked(Duration(seconds=0)):
+            self.done = True
 
 
 def declare(node: Node) -> None:
@@ -340,6 +377,8 @@ def declare(node: Node) -> None:
         0,
         16,
     )
+    p("keys", "", "the run's key directory (ost keys make): signs and checks every message")
+    p("insecure", False, "no signatures: accept unsigned messages (for comparison)")
 
 
 def agent_id_from_args(argv: list[str]) -> int | None:

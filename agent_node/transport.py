@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import faulthandler
 import hashlib
+import re
 import time
 from typing import Any
 
@@ -21,7 +22,8 @@ from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
 
-from ost_msgs_py import wire
+from agent_node.params import ParameterError
+from ost_msgs_py import auth, wire
 from ost_msgs_py.runtime import Acted, AgentReport, Ready, Resend, RunEnd, RunInfo, Tick
 from ost_msgs_py.wire import MessageError
 from ost_ros import protocols
@@ -152,8 +154,11 @@ def scenario_fingerprint(scenario: Scenario) -> str:
     return hashlib.sha256(dump_scenario(scenario).encode()).hexdigest()[:16]
 
 
+_DIGITS = re.compile(r"\d+")
+
+
 class Throttle:
-    """At most one warning per (topic, sender) every ``period`` seconds; counts the rest."""
+    """At most one warning per key (topic, sender, reason) every ``period`` seconds; counts the rest."""
 
     def __init__(self, logger, period: float = 5.0):
         self.logger = logger
@@ -162,8 +167,10 @@ class Throttle:
         self._muted: dict[tuple[str, str], int] = {}
 
     def warn(self, topic: str, sender: str, text: str) -> None:
-        """A dropped message: names the topic and the sender."""
-        self.note((topic, sender), f"dropped message on {topic} from {sender}: {text}")
+        """A dropped message: names the topic and the sender; throttled per topic, sender and
+        kind of reason (its text, numbers aside: unsigned, forged how, replayed, which field)."""
+        key = (topic, f"{sender}: {_DIGITS.sub('#', text)}")
+        self.note(key, f"dropped message on {topic} from {sender}: {text}")
 
     def note(self, key: tuple[str, str], text: str) -> None:
         """Any warning, throttled per ``key``."""
@@ -177,9 +184,61 @@ class Throttle:
         self.logger.warning(f"{text}{more}")
 
 
-def from_ros_or_warn(msg: Any, topic: str, throttle: Throttle) -> Any:
+class NodeAuth:
+    """A node's part in authenticated messages: its signer (its own key) and a verifier (the
+    team's public keys), or neither in an insecure run (``insecure:=true``)."""
+
+    def __init__(self, signer: auth.Signer | None = None, verifier: auth.Verifier | None = None):
+        self.signer = signer
+        self.verifier = verifier
+
+    @property
+    def secure(self) -> bool:
+        return self.verifier is not None
+
+    def publish(self, pub: Any, msg: Any) -> None:
+        """Seal (sign, with a fresh counter) and publish."""
+        if self.signer is not None:
+            self.signer.seal(msg, pub.topic_name)
+        pub.publish(msg)
+
+    def check(self, msg: Any, topic: str) -> str | None:
+        """None for a genuine message (or any, insecure); else why it is dropped."""
+        return None if self.verifier is None else self.verifier.check(msg, topic)
+
+    def counts(self) -> dict[str, int]:
+        """Messages dropped by this node: unsigned, forged, replayed."""
+        return self.verifier.counts() if self.verifier is not None else dict.fromkeys(auth.REASONS, 0)
+
+
+def node_auth(keys: str, insecure: bool, signer: int) -> NodeAuth:
+    """The node's keys from the run's key directory (``ost keys make``); the signer's own
+    private key is the only one it reads."""
+    if insecure:
+        if keys:
+            raise ParameterError("keys: given with insecure:=true (choose one)")
+        return NodeAuth()
+    if not keys:
+        raise ParameterError(
+            "keys: a secure run needs its key directory (-p keys:=DIR, made by `ost keys make`), "
+            "or -p insecure:=true"
+        )
+    try:
+        team = auth.load_team(keys)
+        if signer not in team.keys:
+            raise auth.AuthError(f"{keys}/{auth.TEAM_FILE}: no key for {auth.signer_name(signer)}")
+        return NodeAuth(auth.Signer(team, signer, auth.load_private(keys, signer)), auth.Verifier(team))
+    except auth.AuthError as exc:
+        raise ParameterError(f"keys: {exc}") from None
+
+
+def from_ros_or_warn(msg: Any, topic: str, throttle: Throttle, guard: NodeAuth | None = None) -> Any:
     """The message's dataclass (a Sample for a protocol message), or None after a throttled
-    warning naming the topic, the sender and the field."""
+    warning naming the topic, the sender it claims and why (its signature, or the field)."""
+    why = guard.check(msg, topic) if guard is not None else None
+    if why is not None:
+        throttle.warn(topic, wire.sender_of(msg), why)
+        return None
     try:
         return wire.from_ros(msg)
     except MessageError as exc:

@@ -1,12 +1,15 @@
 """Wall time, peak memory and DDS traffic of runs over DDS, next to ``ost sim`` (not a test).
 
     .venv/bin/python benchmarks/bench_ros.py --agents 10 20 --objects 20 --skip on off
+    .venv/bin/python benchmarks/bench_ros.py --agents 10 --objects 20 --skip on --auth secure insecure
 
 For each (N, M, skipping): generates the paper's scenario (seed 1, 500x200 unless --width/--height),
 runs ``bringup_scripts/ost_up.sh --json`` and ``simulate`` in-process, checks the results are
 identical and prints: wall time (bring-up included), summed peak RSS of all node processes
 (from /proc status VmHWM, sampled), round trips, skipped steps, protocol messages, and the DDS
 samples published (ticks + acted per round trip; one sample per protocol message, on its kind's topic).
+``--auth secure insecure`` runs each case both ways (signed messages, the default, and
+``ost_up.sh --insecure``), interleaved: the signing overhead.
 """
 
 from __future__ import annotations
@@ -43,7 +46,7 @@ def peak_rss_mb(run_dir: Path) -> float:
     return total / 1024
 
 
-def bench(n: int, m: int, skip: bool, width: int, height: int, tmp: Path) -> dict:
+def bench(n: int, m: int, skip: bool, width: int, height: int, tmp: Path, secure: bool = True) -> dict:
     scenario = generate_scenario(n, m, 1, Grid(width, height))
     path = tmp / f"s_{n}_{m}.yaml"
     path.write_text(dump_scenario(scenario))
@@ -51,16 +54,20 @@ def bench(n: int, m: int, skip: bool, width: int, height: int, tmp: Path) -> dic
     ref = simulate(scenario, "ccp", CoordinationPolicy()).to_dict()
     sim_s = time.perf_counter() - t0
     ref["lower_bound"] = lower_bound(scenario).value  # `ost sim` and the world node print it
-    run_dir = tmp / f"run_{n}_{m}_{int(skip)}"
-    args = [
-        "bash",
-        str(REPO / "bringup_scripts/ost_up.sh"),
-        "--scenario",
-        str(path),
-        "--json",
-        "--run-dir",
-        str(run_dir),
-    ] + ([] if skip else ["--no-skip"])
+    run_dir = tmp / f"run_{n}_{m}_{int(skip)}_{'secure' if secure else 'insecure'}"
+    args = (
+        [
+            "bash",
+            str(REPO / "bringup_scripts/ost_up.sh"),
+            "--scenario",
+            str(path),
+            "--json",
+            "--run-dir",
+            str(run_dir),
+        ]
+        + ([] if skip else ["--no-skip"])
+        + ([] if secure else ["--insecure"])
+    )
     t0 = time.perf_counter()
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     peak = 0.0
@@ -70,7 +77,7 @@ def bench(n: int, m: int, skip: bool, width: int, height: int, tmp: Path) -> dic
     out, err = proc.communicate()
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
-        return {"N": n, "M": m, "skip": skip, "error": err.strip().splitlines()[-1:]}
+        return {"N": n, "M": m, "skip": skip, "secure": secure, "error": err.strip().splitlines()[-1:]}
     stats = json.loads((run_dir / "result.json.transport.json").read_text())
     same = json.loads(out) == ref
     dds = stats["round_trips"] * 2 * n
@@ -78,6 +85,7 @@ def bench(n: int, m: int, skip: bool, width: int, height: int, tmp: Path) -> dic
         "N": n,
         "M": m,
         "skip": skip,
+        "secure": stats.get("auth", {}).get("secure", False),
         "identical": same,
         "wall_s": round(wall, 1),
         "run_s": stats["wall_s"],
@@ -99,13 +107,18 @@ def main() -> int:
     p.add_argument("--skip", choices=("on", "off"), nargs="+", default=["on", "off"])
     p.add_argument("--width", type=int, default=500)
     p.add_argument("--height", type=int, default=200)
+    p.add_argument("--auth", choices=("secure", "insecure"), nargs="+", default=["secure"])
+    p.add_argument("--repeat", type=int, default=1, help="runs of each case (interleaved)")
     a = p.parse_args()
     tmp = Path(os.environ.get("TMPDIR", "/tmp")) / f"bench_ros_{os.getpid()}"
     tmp.mkdir(parents=True, exist_ok=True)
     for n in a.agents:
         for m in a.objects:
             for s in a.skip:
-                print(json.dumps(bench(n, m, s == "on", a.width, a.height, tmp)), flush=True)
+                for _ in range(a.repeat):
+                    for auth in a.auth:
+                        row = bench(n, m, s == "on", a.width, a.height, tmp, auth == "secure")
+                        print(json.dumps(row), flush=True)
     return 0
 
 

@@ -33,6 +33,8 @@ ROS:
   --namespace NS             the run's namespace (default ost: /ost/world, /ost/object_found, ...);
                              two teams in two namespaces share a domain without interfering
   --domain-id D              ROS_DOMAIN_ID (default: a free one in 10..99)
+  --insecure                 no signed messages (default: every message is signed with keys
+                             made for the run in DIR/keys; receivers drop the rest)
 watch:
   --record FILE.mcap         record every topic of the run (rosbag2-style MCAP; ost record info,
                              ost replay FILE --animate out.gif)
@@ -59,7 +61,7 @@ say() { echo "$me: $*" >&2; }
 
 agents="" objects="" seed="" scenario="" protocol="ccp" ci="1" interval="" width="" height="" nmax=""
 mute="" respawn=0 hosts=0 loss=0 discovery="multicast" kills=() failure_timeout=1.0 partition=equal coordination=distributed
-record="" foxglove=0
+record="" foxglove=0 insecure=0
 domain="${ROS_DOMAIN_ID:-}" run_dir="" json=0 skip=true max_steps=0 timeout=0 background=0 stay=0 ns="ost"
 need() { [ $# -ge 2 ] && [ -n "$2" ] || die "$1 needs a value"; }
 int() { [[ "$2" =~ ^[0-9]+$ ]] || die "$1: expected a non-negative integer, got '$2'"; }
@@ -99,6 +101,7 @@ while [ $# -gt 0 ]; do
     --foxglove) if [ $# -ge 2 ] && [[ "$2" =~ ^[0-9]+$ ]]; then foxglove="$2"; shift 2; else foxglove=8765; shift; fi
       [ "$foxglove" -ge 1 ] && [ "$foxglove" -le 65535 ] || die "--foxglove: port $foxglove is not in 1..65535" ;;
     --json) json=1; shift ;;
+    --insecure) insecure=1; shift ;;
     --no-skip) skip=false; shift ;;
     --background) background=1; shift ;;
     --stay) stay=1; shift ;;   # (internal: --background's supervisor) keep the world up after the run
@@ -165,6 +168,7 @@ if [ "$background" = 1 ]; then
   [ -n "$domain" ] && fwd+=(--domain-id "$domain")
   [ "$skip" = false ] && fwd+=(--no-skip)
   [ "$json" = 1 ] && fwd+=(--json)
+  [ "$insecure" = 1 ] && fwd+=(--insecure)
   [ -n "$record" ] && fwd+=(--record "$record")
   [ "$foxglove" -gt 0 ] && fwd+=(--foxglove "$foxglove")
   nohup "$0" "${fwd[@]}" > "$run_dir/ost_up.out" 2> "$run_dir/ost_up.log" < /dev/null &
@@ -263,6 +267,15 @@ print(" ".join(str(a.id) for a in s.agents))
 EOF
 )" || exit 2
 n="$(echo $ids | wc -w)"
+# Signed messages: a key per robot and one for the world, made for this run (docs/ros.md).
+if [ "$insecure" = 1 ]; then
+  auth_params="    insecure: true"
+else
+  kargs=(--scenario "$scenario"); [ "$team" = 0 ] || kargs+=(--agents "$team")
+  rm -rf "$run_dir/keys"
+  "$bin/ost" keys make "$run_dir/keys" "${kargs[@]}" > /dev/null || exit 2
+  auth_params="    keys: \"$run_dir/keys\""
+fi
 observers=0   # a recorder / live view: the run starts once every writer has matched it too
 { [ -n "$record" ] || [ "$foxglove" -gt 0 ]; } && observers=1
 cat > "$run_dir/params.yaml" <<EOF
@@ -276,6 +289,7 @@ cat > "$run_dir/params.yaml" <<EOF
     coordination: "$coordination"
     failure_timeout: $failure_timeout
     observers: $observers
+$auth_params
 EOF
 cat > "$run_dir/world_params.yaml" <<EOF
 /**:
@@ -290,6 +304,7 @@ cat > "$run_dir/world_params.yaml" <<EOF
     exit_when_done: $([ "$stay" = 1 ] && echo false || echo true)
     observers: $observers
     progress_file: "$run_dir/progress"
+$auth_params
 EOF
 
 # ------------------------------------------------------------------ processes and teardown

@@ -2,7 +2,7 @@
 
     ros2 launch ost_ros team.launch.py agents:=4 objects:=8 seed:=1 [protocol:=hcp] [ci:=2]
     ros2 launch ost_ros team.launch.py scenario:=/path/s.yaml [namespace:=team_a]
-        [result_file:=/tmp/result.json] [record:=/tmp/run.mcap] [foxglove:=8765]
+        [result_file:=/tmp/result.json] [record:=/tmp/run.mcap] [foxglove:=8765] [insecure:=true]
 
 The same processes and parameters as ``bringup_scripts/ost_up.sh`` (which stays the main
 bring-up: it also picks a free domain, cleans up and prints the result): with ``scenario`` empty
@@ -11,7 +11,9 @@ temporary file, exactly as ``ost generate`` does. Launch ends when the world nod
 the result, once the agents have left); the result is on ``<namespace>/result`` and, with
 ``result_file``, in that file — the JSON of ``ost sim --json``. ``record`` and ``foxglove`` start
 the watch node with the run (a recording for ``ost replay``, a live Foxglove view), counted as an
-observer that every node waits for before step 0.
+observer that every node waits for before step 0. Every message is signed with keys made for
+the run (in a temporary directory, or ``keys:=DIR`` from ``ost keys make``) unless
+``insecure:=true``.
 """
 
 from __future__ import annotations
@@ -43,10 +45,13 @@ ARGUMENTS = {
     "max_steps": ("0", "step limit (0: the simulator's)"),
     "record": ("", "record every topic of the run to this MCAP file ('': none)"),
     "foxglove": ("0", "serve a live Foxglove view on this port (0: none)"),
+    "keys": ("", "the run's key directory (ost keys make); empty: fresh keys in a temporary one"),
+    "insecure": ("false", "no signed messages (for comparison)"),
 }
 
 
 def _nodes(context: LaunchContext) -> list:
+    from ost_msgs_py.auth import make_keys
     from ost_ros.model import Grid
     from ost_ros.scenario import dump_scenario, generate_scenario, load_scenario, with_team
 
@@ -79,7 +84,14 @@ def _nodes(context: LaunchContext) -> list:
                 parameters=[watched],
             )
         ]
-    common = {"scenario": path, "agents": agents, "observers": len(watch)}
+    common: dict = {"scenario": path, "agents": agents, "observers": len(watch)}
+    if arg["insecure"].lower() == "true":
+        common["insecure"] = True
+    else:  # signed messages: a key per robot and one for the world (docs/ros.md)
+        keys = arg["keys"] or tempfile.mkdtemp(prefix="ost_keys_")
+        if not arg["keys"]:
+            make_keys(keys, [a.id for a in scenario.agents])
+        common["keys"] = keys
     world = Node(
         package="ost_ros",
         executable="world_node",

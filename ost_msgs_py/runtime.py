@@ -185,6 +185,7 @@ class AgentReport:
     messages: int  # protocol messages this agent sent
     view: str = ""  # what agents must agree on (CCP: schedule, HCP: groups)
     run: str = ""  # the world's run id (strays of other runs are dropped)
+    dropped: tuple[int, ...] = ()  # messages it dropped for their signature: unsigned, forged, replayed
     version: int = RUNTIME_VERSION
 
 

@@ -32,6 +32,7 @@ from typing import Any
 
 import ost_msgs.msg as ros
 
+from ost_msgs_py import auth
 from ost_msgs_py import messages as _messages
 from ost_msgs_py import runtime as _runtime
 from ost_msgs_py.messages import ActionKind
@@ -271,13 +272,12 @@ def from_ros(msg: Any) -> Any:
 
 
 def sender_of(msg: Any) -> str:
-    """Who sent a (possibly invalid) message, for warnings."""
-    for name in ("sender", "agent"):
-        v = getattr(msg, name, None)
-        if isinstance(v, int):
-            return f"agent {v}"
-    action = getattr(msg, "action", None)
-    return f"agent {action.agent}" if action is not None else "unknown"
+    """Who a (possibly invalid) message claims to be from, for warnings."""
+    try:
+        who = auth.claimed_signer(msg)
+    except AttributeError:
+        who = None
+    return "unknown" if not isinstance(who, int) else auth.signer_name(who)
 
 
 _BY_ROS: dict[type, type] = {}

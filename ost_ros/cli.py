@@ -27,6 +27,7 @@ VERB_MODULES: tuple[str, ...] = (
     "ost_ros.commands.study",
     "ost_ros.commands.faults",
     "ost_ros.commands.watch",
+    "ost_ros.commands.keys",
 )
 
 

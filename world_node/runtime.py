@@ -195,6 +195,11 @@ class WorldRuntime:
         self._reports[report.agent] = report
 
     @property
+    def reports(self) -> dict[int, AgentReport]:
+        """The agents' reports so far, by agent."""
+        return dict(self._reports)
+
+    @property
     def missing_reports(self) -> tuple[int, ...]:
         return tuple(i for i in self.live if i not in self._reports and i not in self._gone)
 

@@ -13,7 +13,9 @@ that checkpoint: a restarted world node continues the run — it publishes the s
 again, and agents that had already answered answer again) and ``failure_timeout`` (s, the
 liveliness lease the world requests of every agent; an agent whose liveliness is lost and does
 not come back — and that sends nothing — for another such time is declared failed in the
-current step and the survivors re-coordinate; 0 = off).
+current step and the survivors re-coordinate; 0 = off), ``keys`` (the run's key directory,
+``ost keys make``: the world signs what it sends with ``world.key`` and drops anything not
+signed by the robot it claims; the run id is the keys') or ``insecure`` (true: no signatures).
 
 Topics are relative to the node's namespace (default ``/ost``): publishes ``clock`` (sim time:
 step t = t seconds), ``markers``, each agent's ``agent_<i>/tick`` (``ost_msgs/msg/Tick``),
@@ -47,7 +49,7 @@ from visualization_msgs.msg import MarkerArray
 from agent_node import transport as tp
 from agent_node.params import ParameterError
 from agent_node.params import declare as declare_param
-from ost_msgs_py import wire
+from ost_msgs_py import auth, wire
 from ost_msgs_py.runtime import Acted, AgentReport, Ready, RunEnd, RunInfo, Tick
 from ost_ros.bounds import lower_bound
 from ost_ros.scenario import ScenarioError, dump_scenario, load_scenario, with_team
@@ -105,6 +107,8 @@ class WorldNode(Node):
             16,
         ),
         ("progress_file", "", "write 'step delivered objects' there as the run goes ('': none)", None, None),
+        ("keys", "", "the run's key directory (ost keys make): signs and checks every message", None, None),
+        ("insecure", False, "no signatures: accept unsigned messages (for comparison)", None, None),
     )
 
     def __init__(self):
@@ -125,10 +129,11 @@ class WorldNode(Node):
             raise ParameterError(f"scenario: {exc}") from None
         self.scenario = scenario
         self.fingerprint = tp.scenario_fingerprint(scenario)
-        # A fresh id per run: messages of any other run (a stray node) are told apart.
-        self.rt = WorldRuntime(
-            scenario, p["max_steps"] or None, p["event_skipping"], run=secrets.token_hex(6)
-        )
+        self.guard = tp.node_auth(p["keys"], p["insecure"], auth.WORLD)
+        # A fresh id per run: messages of any other run (a stray node) are told apart. A secure
+        # run's id comes with its keys: every process knows it from team.yaml.
+        run = self.guard.signer.run if self.guard.signer is not None else secrets.token_hex(6)
+        self.rt = WorldRuntime(scenario, p["max_steps"] or None, p["event_skipping"], run=run)
         self.result_file = p["result_file"]
         self.marker_every = p["marker_every"]
         self.exit_when_done = p["exit_when_done"]
@@ -167,17 +172,10 @@ class WorldNode(Node):
         self.pub_info = self.create_publisher(
             wire.ros_type(RunInfo), tp.RUN_INFO, tp.LATCHED_ALL_QOS, event_callbacks=pub()
         )
-        self.pub_info.publish(
-            wire.to_ros(
-                RunInfo(
-                    self.rt.run,
-                    dump_scenario(scenario),
-                    self.fingerprint,
-                    self.rt.skipping,
-                    self.rt.max_steps or 0,
-                )
-            )
+        info = RunInfo(
+            self.rt.run, dump_scenario(scenario), self.fingerprint, self.rt.skipping, self.rt.max_steps or 0
         )
+        self.guard.publish(self.pub_info, wire.to_ros(info))
         self.sub_acted = self.create_subscription(
             wire.ros_type(Acted), tp.ACTED, self.on_acted, q, event_callbacks=sub()
         )
@@ -262,7 +260,7 @@ class WorldNode(Node):
     # ------------------------------------------------------------------ start
 
     def on_ready(self, msg) -> None:
-        r = tp.from_ros_or_warn(msg, self.sub_ready.topic_name, self.throttle)
+        r = tp.from_ros_or_warn(msg, self.sub_ready.topic_name, self.throttle, self.guard)
         if r is None:
             return
         if r.agent not in self.ids:
@@ -348,7 +346,7 @@ class WorldNode(Node):
         if isinstance(nxt, RunEnd):
             self.last_sent = [wire.to_ros(nxt)]
             self.save_checkpoint()
-            self.pub_end.publish(self.last_sent[0])
+            self.guard.publish(self.pub_end, self.last_sent[0])
             self.get_logger().info(
                 f"run ended at step {nxt.steps} (completed: {nxt.completed}); collecting reports"
             )
@@ -358,7 +356,7 @@ class WorldNode(Node):
         self.ticks_sent += 1
         self.save_checkpoint()  # before publishing: a published step is always recoverable
         for tick, msg in zip(nxt, self.last_sent):
-            self.pub_tick[tick.observation.agent].publish(msg)
+            self.guard.publish(self.pub_tick[tick.observation.agent], msg)
 
     def resend(self, all_agents: bool = False) -> None:
         """A step waits too long: publish its ticks (to agents that have not acted) or the
@@ -366,12 +364,12 @@ class WorldNode(Node):
         self.last_progress = time.monotonic()
         if self.rt.ended is not None:
             if (self.rt.missing_reports or all_agents) and self.last_sent:
-                self.pub_end.publish(self.last_sent[0])
+                self.guard.publish(self.pub_end, self.last_sent[0])
             return
         acted = set() if all_agents else set(self.rt.acted_agents())
         for agent, msg in zip(self.last_agents, self.last_sent):
             if agent not in acted and agent in self.rt.live:
-                self.pub_tick[agent].publish(msg)
+                self.guard.publish(self.pub_tick[agent], msg)
 
     def publish_state(self, t: int) -> None:
         stamp = Time(sec=t, nanosec=0)
@@ -396,7 +394,7 @@ class WorldNode(Node):
             self.throttle.note(("progress", "world"), f"progress_file: cannot write ({exc.strerror})")
 
     def on_acted(self, msg) -> None:
-        a = tp.from_ros_or_warn(msg, self.sub_acted.topic_name, self.throttle)
+        a = tp.from_ros_or_warn(msg, self.sub_acted.topic_name, self.throttle, self.guard)
         if a is None:
             return
         if a.run != self.rt.run:  # another run's (a stray): say so whether or not we started
@@ -479,7 +477,7 @@ class WorldNode(Node):
     # ------------------------------------------------------------------ end
 
     def on_report(self, msg) -> None:
-        r = tp.from_ros_or_warn(msg, self.sub_report.topic_name, self.throttle)
+        r = tp.from_ros_or_warn(msg, self.sub_report.topic_name, self.throttle, self.guard)
         if r is None:
             return
         self.heard_from(r.agent)
@@ -510,6 +508,8 @@ class WorldNode(Node):
             "round_trips": self.rt.round_trips,
             "skipped_steps": self.rt.skipped,
             "protocol_messages": self.rt.messages,
+            # messages dropped for their signature, by the world and (their reports) the agents
+            "auth": {"secure": self.guard.secure, "dropped": self.dropped()},
         }
         self.get_logger().info(
             f"result: makespan {result.makespan}, completed {result.completed}; transport {json.dumps(stats)}"
@@ -517,6 +517,13 @@ class WorldNode(Node):
         if self.result_file:
             with contextlib.suppress(OSError):  # the stats are a nicety; the result is written
                 Path(self.result_file + ".transport.json").write_text(json.dumps(stats) + "\n")
+
+    def dropped(self) -> dict[str, int]:
+        total = self.guard.counts()
+        for r in self.rt.reports.values():
+            for reason, n in zip(auth.REASONS, r.dropped):
+                total[reason] += n
+        return total
 
 
 def main(args=None) -> int:

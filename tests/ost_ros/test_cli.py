@@ -248,3 +248,27 @@ def test_sim_coordinator_organisation(scenario):
     ]:
         bad = ost("sim", scenario, "--coordination", "coordinator", *args)
         assert bad.returncode == 2 and text in bad.stderr, bad.stderr
+
+
+def test_keys_make_and_show(scenario, tmp_path):
+    r = ost("keys", "make", tmp_path / "k", "--scenario", scenario, "--run", "run1")
+    assert r.returncode == 0 and "keys for the world and 4 agents, run run1" in r.stdout, r.stderr
+    assert sorted(p.name for p in (tmp_path / "k").iterdir()) == [
+        "agent_0.key", "agent_1.key", "agent_2.key", "agent_3.key", "team.yaml", "world.key",
+    ]  # fmt: skip
+    shown = json.loads(ost("keys", "show", tmp_path / "k", "--json").stdout)
+    assert shown["run"] == "run1" and sorted(shown["signers"]) == ["0", "1", "2", "3", "world"]
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["keys", "make", "K"], "give --scenario FILE or --agents N"),
+        (["keys", "make", "K", "--agents", "0"], "--agents: 0 (must be at least 1)"),
+        (["keys", "make", "K", "--agents", "2", "--run", "a/b"], "--run: 'a/b' (letters and digits only)"),
+        (["keys", "show", "/nonexistent"], "/nonexistent/team.yaml: cannot read"),
+    ],
+)
+def test_keys_bad_input_one_line_exit_2(tmp_path, args, needle):
+    r = subprocess.run(OST + args, capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert r.returncode == 2 and needle in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr

@@ -92,6 +92,20 @@ def ost_up(*args: str, timeout: float = 240) -> subprocess.CompletedProcess:
     return subprocess.CompletedProcess(p.args, p.returncode, out, err)
 
 
+def make_keys(run_dir: Path, scenario: Path) -> list[str]:
+    """Key material for a run of ``scenario`` (as ost_up.sh makes it): the node arguments."""
+    keys = run_dir / "keys"
+    subprocess.run(
+        [str(BIN / "ost"), "keys", "make", str(keys), "--scenario", str(scenario)],
+        check=True,
+        capture_output=True,
+    )
+    return ["-p", f"keys:={keys}"]
+
+
+INSECURE = ["-p", "insecure:=true"]
+
+
 def checkpoint_step(path) -> int:
     """The step in the world's checkpoint file (-1 while there is none)."""
     try:

@@ -13,7 +13,7 @@ from ost_msgs_py.runtime import Tick
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
-from tests.ros.dds_helpers import BIN, reference, ros_env
+from tests.ros.dds_helpers import BIN, INSECURE, reference, ros_env
 
 
 def expected_topics(protocol: str, agents: int, ns: str = "/ost") -> dict[str, str]:
@@ -74,8 +74,9 @@ def test_graph_and_malformed_messages(tmp_path, procs, domain):
         f"result_file:={result}",
         "-p",
         "exit_when_done:=false",
+        *INSECURE,  # the decoders' warnings (tests/ros/test_secure.py: the signatures)
     )
-    procs.start("agent_0", "agent_node", "-p", f"scenario:={path}", "-p", "agent_id:=0")
+    procs.start("agent_0", "agent_node", "-p", f"scenario:={path}", "-p", "agent_id:=0", *INSECURE)
     # agent_1 is missing: the world waits for it, so the graph holds still.
     procs.wait_for("world", "waiting for 2 agents")
     # ros2 topic list -t's form, through the stand-in (tests/ros/test_ros2cli.py: the real CLI)
@@ -107,10 +108,10 @@ def test_graph_and_malformed_messages(tmp_path, procs, domain):
         "(expected -1 for none, or a value >= 0)",
     )
     procs.wait_for(
-        "agent_0", "dropped message on /ost/agent_0/tick from unknown: tick lists 1 peers and 0 counts"
+        "agent_0", "dropped message on /ost/agent_0/tick from the world: tick lists 1 peers and 0 counts"
     )
 
-    procs.start("agent_1", "agent_node", "-p", f"scenario:={path}", "-p", "agent_id:=1")
+    procs.start("agent_1", "agent_node", "-p", f"scenario:={path}", "-p", "agent_id:=1", *INSECURE)
     end = time.monotonic() + 60
     while not result.exists():
         assert time.monotonic() < end, procs.log("world")[-2000:]

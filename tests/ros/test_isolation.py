@@ -86,6 +86,7 @@ def test_stray_publisher_is_detected_and_ignored(tmp_path, domain):
                 str(path),
                 "--json",
                 "--no-skip",
+                "--insecure",  # the run-id check itself (signed runs: tests/ros/test_secure.py)
                 "--domain-id",
                 str(domain),
                 "--run-dir",

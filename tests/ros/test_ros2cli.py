@@ -25,7 +25,7 @@ import pytest
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
-from tests.ros.dds_helpers import BIN, reference, ros_env, wait_subscribers
+from tests.ros.dds_helpers import BIN, make_keys, reference, ros_env, wait_subscribers
 from tests.ros.test_graph import expected_topics
 
 VENV = BIN.parent
@@ -104,9 +104,18 @@ def test_topics_echo_params_and_ros2_run_on_a_live_run(tmp_path, procs, domain):
     path.write_text(dump_scenario(scenario))
     expected = reference(scenario, "ccp", CoordinationPolicy())
     result = tmp_path / "result.json"
-    world_args = ["-p", f"scenario:={path}", "-p", f"result_file:={result}", "-p", "exit_when_done:=false"]
+    keys = make_keys(tmp_path, path)
+    world_args = [
+        "-p",
+        f"scenario:={path}",
+        "-p",
+        f"result_file:={result}",
+        "-p",
+        "exit_when_done:=false",
+        *keys,
+    ]
     procs.start("world", "world_node", *world_args)
-    procs.start("agent_0", "agent_node", "-p", f"scenario:={path}", "-p", "agent_id:=0")
+    procs.start("agent_0", "agent_node", "-p", f"scenario:={path}", "-p", "agent_id:=0", *keys)
     procs.wait_for("world", "waiting for 2 agents")  # agent_1 missing: the graph holds still
 
     want = expected_topics("ccp", 2)
@@ -154,6 +163,7 @@ def test_topics_echo_params_and_ros2_run_on_a_live_run(tmp_path, procs, domain):
             f"scenario:={path}",
             "-p",
             "agent_id:=1",
+            *keys,
         ],
         env=cli_env(domain),
     )

@@ -46,6 +46,8 @@ def test_resume_refuses_a_foreign_checkpoint(tmp_path, domain):
             f"checkpoint_file:={ckpt}",
             "-p",
             "resume:=true",
+            "-p",
+            "insecure:=true",
         ],
         capture_output=True,
         text=True,

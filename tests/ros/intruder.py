@@ -1,0 +1,183 @@
+"""A foreign process on a run's domain, attacking it as a stranger can (tests/ros/test_secure.py).
+
+    python tests/ros/intruder.py --agents 0,1,2 --protocol ccp --stolen-key DIR/agent_1.key
+
+It learns the run id and scenario fingerprint from the world's public ``run_info``, then until
+the result appears it publishes, on every topic of the run, well-formed messages of that
+topic's type, in four ways: unsigned; signed with a key of its own as the sender it claims;
+signed with one robot's real key (``--stolen-key``: agent 1's) but claiming to be another robot
+or the world; and with that key and another's signer id. It also captures genuine messages and
+publishes them again, on their own topic (replays) and on another of the same type. Prints a
+JSON count of what it sent, by kind of attack.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import rclpy
+from cryptography.hazmat.primitives import serialization
+from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
+from rclpy.node import Node
+from std_msgs.msg import String
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from agent_node import transport as tp
+from ost_msgs_py import auth, wire
+from ost_msgs_py.messages import (
+    Action,
+    ActionKind,
+    ObjectFound,
+    ObjectInfo,
+    Observation,
+    ScheduleUpdate,
+    SearchDone,
+    Selection,
+    Status,
+)
+from ost_msgs_py.runtime import Acted, AgentReport, Ready, Resend, RunEnd, RunInfo, Sample, Tick
+from ost_ros import protocols
+
+
+def forged_messages(
+    run: str, fingerprint: str, ids: list[int], protocol: str, t: int
+) -> list[tuple[str, object]]:
+    """(topic, dataclass) of every kind the run has: what a stranger would send."""
+    victim, other = ids[1], ids[2]
+    obj = ObjectInfo(99, (1, 1), (2, 2), 1)
+    kinds = {
+        ObjectFound: ObjectFound(victim, t, obj),
+        SearchDone: SearchDone(victim, t),
+        Selection: Selection(victim, t, 0, (99,)),
+        Status: Status(victim, t, t + 1, (1, 1)),
+        ScheduleUpdate: ScheduleUpdate(victim, t, 0, ()),
+    }
+    out: list[tuple[str, object]] = [
+        (tp.ACTED, Acted(Action(victim, t, ActionKind.WAIT), 0, run=run)),
+        (tp.READY, Ready(other, protocol, fingerprint)),
+        (tp.REPORTS, AgentReport(victim, protocol, "ci=1", None, 0, (), (), (), 0, run=run)),
+        (tp.RESEND, Resend(victim, t, (ids[0],), run)),
+        (tp.RUN_END, RunEnd(t + 1, t, True, run=run)),
+        (tp.RUN_INFO, RunInfo(run, "", fingerprint, True, 0)),
+    ]
+    out += [(tp.tick_topic(i), Tick(t + 1, t, Observation(i, t + 1, (0, 0)), run=run)) for i in ids]
+    for kind in protocols.get(protocol).messages:
+        if kind in kinds:
+            out.append((tp.message_topic(kind), Sample(kinds[kind], t, 0, run)))
+    return out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--agents", required=True)
+    ap.add_argument("--protocol", default="ccp")
+    ap.add_argument("--stolen-key", required=True)
+    ap.add_argument("--team", required=True, help="the run's public team.yaml directory (public)")
+    ap.add_argument("--seconds", type=float, default=120)
+    args = ap.parse_args()
+    ids = [int(x) for x in args.agents.split(",")]
+    stolen = serialization.load_pem_private_key(Path(args.stolen_key).read_bytes(), password=None)
+    assert isinstance(stolen, Ed25519PrivateKey)
+    own = Ed25519PrivateKey.generate()
+    thief = ids[1]  # whose key was stolen: it may not speak for anyone else
+
+    rclpy.init()
+    node = Node("intruder", namespace=tp.NAMESPACE)
+    q = tp.LOCKSTEP_QOS
+    latched = tp.LATCHED_ALL_QOS
+    genuine = auth.Verifier(auth.load_team(args.team))
+    info: list = []
+    done: list = []
+    captured: dict[str, list] = {}
+    types = {
+        tp.ACTED: (Acted, q),
+        tp.READY: (Ready, latched),
+        tp.REPORTS: (AgentReport, latched),
+        tp.RESEND: (Resend, q),
+        tp.RUN_END: (RunEnd, latched),
+        tp.RUN_INFO: (RunInfo, latched),
+        **{tp.tick_topic(i): (Tick, q) for i in ids},
+        **{tp.message_topic(k): (k, q) for k in protocols.get(args.protocol).messages},
+    }
+    pubs = {}
+    subs = []
+    for topic, (cls, qos) in types.items():
+        ros_type = wire.ros_type(cls)
+        pubs[topic] = node.create_publisher(ros_type, topic, qos)
+
+        def keep(msg, topic=topic):
+            if topic == tp.RUN_INFO and not info:
+                info.append(msg)
+            # genuine messages only (the public keys tell), not this process's own
+            if genuine.check(msg, node.resolve_topic_name(topic)) is None:
+                captured.setdefault(topic, []).append(msg)
+
+        subs.append(node.create_subscription(ros_type, topic, keep, qos))
+    subs.append(node.create_subscription(String, tp.RESULT, lambda m: done.append(m), tp.RESULT_QOS))
+
+    sent: Counter[str] = Counter()
+    end = time.monotonic() + args.seconds
+    while not info and time.monotonic() < end:
+        rclpy.spin_once(node, timeout_sec=0.1)
+    if not info:
+        print("intruder: no run_info", file=sys.stderr)
+        return 1
+    run, fingerprint = info[0].run, info[0].fingerprint
+    # every reader of the run (the world's, the agents') matched to this process first
+    want = {tp.ACTED: 1, tp.READY: 1, tp.REPORTS: 1, **{tp.tick_topic(i): 1 for i in ids[:2]}}
+    while any(pubs[t].get_subscription_count() < n + 1 for t, n in want.items()) and time.monotonic() < end:
+        rclpy.spin_once(node, timeout_sec=0.05)
+    print(f"intruder: matched; run {run}", file=sys.stderr, flush=True)
+    replayed: dict[str, int] = {}
+
+    def publish(pub, msg, how: str) -> None:
+        try:
+            pub.publish(msg)
+            sent[how] += 1
+        except RuntimeError:  # (RCLError) a keep-all writer whose readers lag: DDS refuses
+            sent["refused by DDS"] += 1
+
+    t = 0
+    while not done and time.monotonic() < end:
+        t += 1
+        for topic, value in forged_messages(run, fingerprint, ids, args.protocol, t):
+            pub = pubs[topic]
+            claimed = auth.claimed_signer(wire.to_ros(value))
+            assert claimed is not None
+            publish(pub, wire.to_ros(value), "unsigned")
+            team = auth.Team(run, {})
+            # a key of its own, as the sender it claims
+            publish(pub, auth.Signer(team, claimed, own).seal(wire.to_ros(value), pub.topic_name), "own key")
+            if claimed != thief:
+                # a robot's real key, speaking for another robot or the world
+                m = auth.Signer(team, thief, stolen).seal(wire.to_ros(value), pub.topic_name)
+                publish(pub, m, "stolen key, own id")
+                m = auth.Signer(team, claimed, stolen).seal(wire.to_ros(value), pub.topic_name)
+                publish(pub, m, "stolen key, other id")
+        # genuine messages again: on their own topic, and on another of the same type
+        for topic, msgs in list(captured.items()):
+            for msg in msgs[replayed.get(topic, 0) :]:
+                publish(pubs[topic], msg, "replay")
+                if topic.endswith("/tick"):
+                    other = tp.tick_topic(ids[(ids.index(msg.observation.agent) + 1) % len(ids)])
+                    publish(pubs[other], msg, "replay, other topic")
+            replayed[topic] = len(msgs)
+        end_spin = time.monotonic() + 0.1
+        while time.monotonic() < end_spin:
+            rclpy.spin_once(node, timeout_sec=0.02)
+    for pub in pubs.values():
+        pub.wait_for_all_acked(rclpy.duration.Duration(seconds=5))
+    print(json.dumps(dict(sent)), flush=True)
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
