@@ -264,11 +264,14 @@ class AgentRunner:
         for out in self.rt.progress():
             if isinstance(out, Sample):
                 pub = self.kind_pubs[type(out.message)]
-                original = self.originals.get(out.step, {}).get((out.message.sender, out.seq))
-                if out.message.sender != self.rt.me and original is not None:
-                    pub.publish(original)  # a peer's sample relayed: as it signed it
-                else:
+                if out.message.sender == self.rt.me or not self.guard.secure:
                     self.guard.publish(pub, wire.to_ros(out))
+                    continue
+                # A peer's sample relayed: as the peer signed it (this agent cannot sign for it;
+                # one no longer held is left to the peer's own resend).
+                original = self.originals.get(out.step, {}).get((out.message.sender, out.seq))
+                if original is not None:
+                    pub.publish(original)
             elif isinstance(out, Acted):
                 self.guard.publish(self.pub_acted, wire.to_ros(out))
             else:
