@@ -46,8 +46,9 @@ class Task:
     agents: int
     objects: int
     set: int
-    seed: int
+    seed: int  # of the object set
     variants: tuple[Variant, ...]
+    study_seed: int = 1  # the design's seed the object set comes from
 
     @property
     def weight(self) -> float:
@@ -64,14 +65,22 @@ class Design:
     cis: tuple[int, ...] = (1, 10, 20, 30, 40, 50, 100, 200)
     compare_agents: tuple[int, ...] = (10, 50)  # Figs 7–10: HCP vs CCP, the CI sweep
     seed: int = 1
+    # Further seeds run with Table 3's variants only (CCP CI=1 and CI=M at every N): the spread
+    # of each Table 3 cell over independent object sets.
+    table3_seeds: tuple[int, ...] = ()
 
     @classmethod
     def quick(cls, seed: int = 1) -> Design:
         return cls(agents=(10, 20, 50), objects=(1, 10, 50, 100), sets=2, cis=(1, 10, 50, 100), seed=seed)
 
-    def object_seed(self, m: int, s: int) -> int:
+    @property
+    def seeds(self) -> tuple[int, ...]:
+        """Every seed of the design: its own first, then the further Table 3 seeds."""
+        return (self.seed, *(s for s in self.table3_seeds if s != self.seed))
+
+    def object_seed(self, m: int, s: int, seed: int | None = None) -> int:
         """Seed of object set s for M objects: the same set for every N (as in the paper)."""
-        return self.seed * 1_000_000 + m * 1000 + s
+        return (self.seed if seed is None else seed) * 1_000_000 + m * 1000 + s
 
     def tasks(self) -> list[Task]:
         out = []
@@ -83,7 +92,12 @@ class Design:
                     variants.extend(v for v in compared() if v.protocol != PAPER)
                     variants.extend(Variant(PAPER, c) for c in self.cis if c != 1)
                 for s in range(self.sets):
-                    out.append(Task(n, m, s, self.object_seed(m, s), tuple(variants)))
+                    out.append(Task(n, m, s, self.object_seed(m, s), tuple(variants), self.seed))
+                for seed in self.seeds[1:]:
+                    t3 = (Variant(PAPER, 1), Variant(PAPER, "M"))
+                    out.extend(
+                        Task(n, m, s, self.object_seed(m, s, seed), t3, seed) for s in range(self.sets)
+                    )
         return sorted(out, key=lambda t: -t.weight)
 
 

@@ -31,6 +31,9 @@ class Row:
     lower_bound: int
     messages: int
     coordinations: int
+    study_seed: int = 1
+    search_end: int = 0  # the last agent's end of search (its search steps)
+    first_carry: int = 0  # the first step any object was carried
 
 
 def run_task(task: Task) -> tuple[list[Row], float]:
@@ -71,6 +74,9 @@ def run_task(task: Task) -> tuple[list[Row], float]:
                 bound,
                 r.messages,
                 r.coordinations,
+                task.study_seed,
+                max((a.search for a in r.agents), default=0),
+                min((o.start for o in r.objects if o.start is not None), default=0),
             )
         )
     return rows, time.process_time() - cpu
@@ -114,7 +120,7 @@ def run_design(
                 pool.close()
                 pool.join()
     wall = time.perf_counter() - start
-    rows.sort(key=lambda r: (r.agents, r.objects, r.variant, r.set))
+    rows.sort(key=lambda r: (r.study_seed, r.agents, r.objects, r.variant, r.set))
     return rows, Timing(wall, cpu, workers, os.getloadavg()[0])
 
 

@@ -4,12 +4,13 @@ reproducible from its seed), the speedup formula, and one-line errors for bad in
 import csv
 import subprocess
 import sys
+from dataclasses import replace
 
 import pytest
 
 from ost_ros.cli import main
 from ost_ros.study.design import Design, Variant, scenario_of
-from ost_ros.study.report import means, speedup, write_all
+from ost_ros.study.report import interval, means, speedup, write_all
 from ost_ros.study.runner import run_design
 
 TINY = Design(agents=(10, 20), objects=(1, 10), sets=1, cis=(1, 10), compare_agents=(10,), seed=3)
@@ -54,6 +55,52 @@ def test_tiny_study_end_to_end(tmp_path):
         assert len(list(csv.DictReader(f))) == len(rows)
     c = means(rows)
     assert c[(10, 10, "HCP")] > c[(10, 10, "CCP CI=M")]
+
+
+def test_readings_spread_and_the_one_object_row(tmp_path):
+    design = replace(TINY, table3_seeds=(3, 4))
+    rows, timing = run_design(design, workers=1, progress=False)
+    assert {r.study_seed for r in rows} == {3, 4}
+    assert len([r for r in rows if r.study_seed == 4]) == 2 * 2 * 2  # CI=1, CI=M at N=10, 20
+    write_all(tmp_path, design, rows, timing, quick=True)
+    text = (tmp_path / "report.md").read_text()
+    read = list(csv.DictReader((tmp_path / "readings.csv").open()))
+    assert [(r["time"], r["table3_ci"]) for r in read] == [
+        ("return to base", "1"), ("return to base", "M"), ("last delivery", "1"), ("last delivery", "M"),
+    ]  # fmt: skip
+    assert [r["documented"] for r in read] == ["True", "False", "False", "False"]
+    assert "## Readings: how much rides on them" in text and "(documented)" in text
+    # claim 3 is judged per CI, by the paper's standard (every M > 30 cell): none in this design
+    assert "CI=1: no M > 30 cells in this design" in text and "CI=M: no M > 30 cells" in text
+    # Table 3 cells carry their range over the two seeds, and the mean lies in it
+    t3 = [r for r in csv.DictReader((tmp_path / "table3.csv").open()) if r["time"] == "return to base"]
+    for r in t3:
+        assert float(r["N=20 low"]) <= float(r["N=20"]) <= float(r["N=20 high"])
+    assert "[" in text.split("### CCP CI=1")[1].split("###")[0]
+    for r in csv.DictReader((tmp_path / "summary.csv").open()):
+        assert float(r["ci95_low"]) <= float(r["mean_makespan"]) <= float(r["ci95_high"])
+    # M = 1 taken apart: the parts are in time order, and each N's makespan is the run's
+    m1 = list(csv.DictReader((tmp_path / "one_object.csv").open()))
+    c = means(rows, "makespan", 3)
+    for r in m1:
+        parts = [float(r[k]) for k in ("search_end", "first_carry", "last_delivery", "makespan")]
+        assert parts == sorted(parts) and parts[-1] == pytest.approx(c[(int(r["N"]), 1, "CCP CI=1")])
+    assert "## The M = 1 row taken apart" in text
+    for name in ("fig7.png", "ours_n10.png", "fig9.png", "fig11.png"):
+        assert (tmp_path / name).stat().st_size > 0
+
+
+def test_interval_is_students_t():
+    mean, half = interval([10.0, 12.0, 14.0])
+    assert mean == 12.0 and half == pytest.approx(4.303 * 2 / 3**0.5, rel=1e-3)  # t(0.975, 2) = 4.303
+    assert interval([5.0]) == (5.0, 0.0)
+
+
+@pytest.mark.parametrize("seeds", ["x", "5-2", "1-30", "-1"])
+def test_bad_seeds_are_one_line(tmp_path, capsys, seeds):
+    with pytest.raises(SystemExit) as e:
+        main(["reproduce", "--out", str(tmp_path), "--seeds", seeds])
+    assert e.value.code == 2 and "--seeds" in capsys.readouterr().err
 
 
 def test_cli_errors_are_one_line(tmp_path, capsys):
