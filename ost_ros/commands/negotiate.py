@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ost_ros.commands.args import OneLineParser
+from ost_ros.commands.args import OneLineParser, at_least
 from ost_ros.errors import UsageError
 from ost_ros.negotiation.errors import NegotiationError
 
@@ -42,8 +42,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     run.add_argument("--polygon", help='area task polygon "x,y;x,y;..." (default: the 0.673 hexagon)')
     run.add_argument("--targets", type=int, help="targets task: number of random points (default 5)")
     run.add_argument("--strategy", help="rounds or all-against-all (default rounds)")
-    run.add_argument("--drop-rule", help="targets: farthest or path (default farthest)")
-    run.add_argument("--seed", type=int, help="random seed (default 0)")
+    run.add_argument(
+        "--drop-rule", help="targets: furthest (§4.2, default), path (§5.1) or reward (the earlier rule)"
+    )
+    run.add_argument(
+        "--stopping", help="areas: paper (Eq. 3 test, default) or overlap (the earlier 2 %% overlap exit)"
+    )
+    run.add_argument("--seed", type=at_least(0), help="random seed, 0 or more (default 0)")
     run.add_argument("--max-rounds", type=int, help="time-out in rounds (default 400)")
     run.add_argument("--json", action="store_true", help="print the result as JSON")
     run.set_defaults(func=cmd_run, prog=run.prog)
@@ -51,7 +56,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     rep = sub.add_parser("reproduce", help="reproduce Fig. 4, Tables 2-4 and the NFZ example into a report")
     rep.add_argument("--out", type=Path, required=True, help="output directory (CSVs, PNGs, report.md)")
     rep.add_argument("--quick", action="store_true", help="few runs per cell (well under a minute)")
-    rep.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
+    rep.add_argument("--seed", type=at_least(0), default=0, help="base seed, 0 or more (default 0)")
     rep.add_argument("--runs", type=int, help="runs per table cell (default 10, quick 2-3)")
     rep.add_argument("--jobs", type=int, help="worker processes (default: up to 2 cores)")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
@@ -148,6 +153,7 @@ def build_from_spec(spec: dict[str, Any]) -> tuple[Any, list[Any], dict[str, Any
         "seed",
         "max_rounds",
         "drop_rule",
+        "stopping",
         "start",
     }
     extra = sorted(set(spec) - known)
@@ -157,6 +163,8 @@ def build_from_spec(spec: dict[str, Any]) -> tuple[Any, list[Any], dict[str, Any
     if kind not in TASK_TYPES:
         raise NegotiationError(f"unknown task type {kind!r} (expected area or targets)")
     seed = _int(spec.get("seed", 0), "seed")
+    if seed < 0:
+        raise NegotiationError(f"seed must be 0 or more, got {seed}")
     entries = _robot_entries(spec.get("robots", 2))
     deltas = _deltas(spec.get("delta", 0.98 if kind == "area" else 0.9), len(entries))
     task = _task(kind, spec, seed)
@@ -165,7 +173,8 @@ def build_from_spec(spec: dict[str, Any]) -> tuple[Any, list[Any], dict[str, Any
         "strategy": str(spec.get("strategy", "rounds")),
         "seed": seed,
         "max_rounds": _int(spec.get("max_rounds", 400), "max_rounds"),
-        "drop_rule": str(spec.get("drop_rule", "farthest")),
+        "drop_rule": str(spec.get("drop_rule", "furthest")),
+        "stopping": str(spec.get("stopping", "paper")),
     }
     return task, agents, opts
 
@@ -268,6 +277,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "max_rounds": args.max_rounds,
         "drop_rule": args.drop_rule,
+        "stopping": args.stopping,
     }
     spec.update({k: v for k, v in flags.items() if v is not None})
     if args.polygon:
@@ -287,6 +297,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             seed=opts["seed"],
             max_rounds=opts["max_rounds"],
             drop_rule=opts["drop_rule"],
+            stopping=opts["stopping"],
             trace=False,
         )
     except NegotiationError as exc:
@@ -300,11 +311,14 @@ def cmd_run(args: argparse.Namespace) -> int:
     if isinstance(task, TargetTask):
         import numpy as np
 
+        from ost_ros.negotiation.optimal import route_is_exact
+
         starts = np.array([a.reward.start for a in agents])
         alloc = evaluate_allocation(starts, task.points, res.shares)
         for r, s, length in zip(out["robots"], res.shares, alloc.lengths):
             r["targets"] = sorted(s)
             r["route_length"] = length
+            r["route_exact"] = route_is_exact(len(s))
     if args.json:
         print(json.dumps(out, indent=2))
         return 0
@@ -317,7 +331,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         f"overlap {100 * m['overlap']:.2f} %  G {m['G']:.4f}  covered {100 * m['covered']:.1f} %  out {100 * m['out']:.2f} %"
     )
     for i, r in enumerate(out["robots"]):
-        extra = f"  targets {r['targets']}  route {r['route_length']:.3f}" if "targets" in r else ""
+        extra = ""
+        if "targets" in r:
+            how = "" if r["route_exact"] else " (nearest neighbour + 2-opt: over 12 targets)"
+            extra = f"  targets {r['targets']}  route {r['route_length']:.3f}{how}"
         print(f"robot {i + 1} (δ={r['delta']:g}): share {100 * r['share']:.1f} %{extra}")
     return 0
 

@@ -17,7 +17,7 @@ import numpy as np
 from .agents import AgentSpec, AreaNegotiator, TargetNegotiator
 from .errors import NegotiationError
 from .messages import BROADCAST, Offer
-from .proposals import AreaSearch
+from .proposals import DROP_RULES, AreaSearch
 from .rewards import global_coverage
 from .tasks import AreaTask, TargetTask
 
@@ -63,7 +63,15 @@ class NegotiationResult:
 
 
 def _snapshot(
-    task, claims: list, exited: set[int], period: int, rnd: int, agent: int, kind: str, predictions: list
+    task,
+    claims: list,
+    exited: set[int],
+    period: int,
+    rnd: int,
+    agent: int,
+    kind: str,
+    predictions: list,
+    evaluated: list,
 ) -> dict[str, Any]:
     inside = [task.inside(c) for c in claims]
     return {
@@ -73,6 +81,7 @@ def _snapshot(
         "kind": kind,
         "shares": [task.dim(c) / task.size for c in inside],
         "predictions": list(predictions),
+        "evaluated": list(evaluated),
         "overlap": sum(task.dim(task.overlap(a, b)) for a, b in combinations(inside, 2)) / task.size,
         "G": global_coverage(task, claims),
         "exited": sorted(exited),
@@ -86,14 +95,17 @@ def negotiate(
     seed: int = 0,
     max_rounds: int = 400,
     search: AreaSearch | None = None,
-    drop_rule: str = "farthest",
+    drop_rule: str = "furthest",
     exit_overlap: float = 0.02,
     trace: bool = True,
+    stopping: str = "paper",
 ) -> NegotiationResult:
     """Negotiate a subdivision of ``task`` among ``agents``; same seed → same result.
 
-    exit_overlap: an area agent leaves once its claim overlaps the others' by at most this
-    fraction of dim(T0). rounds: each round every active agent takes one turn, in agent order starting with agent
+    stopping (areas): ``paper`` — an agent accepts or leaves when the share the others leave it
+    reaches its Rubinstein prediction (Eq. 3); ``overlap`` — also once its claim overlaps the
+    others' by at most ``exit_overlap`` of dim(T0), with claims clipped to T0 (``AreaNegotiator``).
+    drop_rule (targets): ``furthest`` (§4.2), ``path`` (§5.1) or ``reward``. rounds: each round every active agent takes one turn, in agent order starting with agent
     (round mod R) — the starter rotates. all-against-all: each round, every ordered pair
     (i, j) holds one bilateral exchange in which i answers j's claim alone.
     """
@@ -103,7 +115,8 @@ def negotiate(
         raise NegotiationError("need at least one robot to negotiate")
     if max_rounds < 1:
         raise NegotiationError("max_rounds must be at least 1")
-    session = _Session(task, _negotiators(task, agents, seed, search, drop_rule, exit_overlap), trace)
+    negs = _negotiators(task, agents, seed, search, drop_rule, exit_overlap, stopping)
+    session = _Session(task, negs, trace)
     rnd = 0
     for rnd in range(max_rounds):
         active = [i for i in range(session.size) if i not in session.exited]
@@ -127,16 +140,23 @@ def _negotiators(
     search: AreaSearch | None,
     drop_rule: str,
     exit_overlap: float,
+    stopping: str,
 ) -> list:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise NegotiationError(f"seed must be a non-negative integer, got {seed!r}")
     rngs = np.random.default_rng(seed).spawn(len(agents))
     if isinstance(task, AreaTask):
         if not 0.0 <= exit_overlap < 1.0:
             raise NegotiationError(f"exit_overlap must be in [0, 1), got {exit_overlap:g}")
         return [
-            AreaNegotiator(i, a, task, i == 0, rngs[i], search or AreaSearch(), exit_overlap)
+            AreaNegotiator(i, a, task, i == 0, rngs[i], search or AreaSearch(), exit_overlap, stopping)
             for i, a in enumerate(agents)
         ]
     if isinstance(task, TargetTask):
+        if drop_rule not in DROP_RULES:
+            raise NegotiationError(
+                f"unknown drop rule {drop_rule!r} (expected one of {', '.join(DROP_RULES)})"
+            )
         return [TargetNegotiator(i, a, task, i == 0, rngs[i], drop_rule) for i, a in enumerate(agents)]
     raise NegotiationError(f"unknown task type {type(task).__name__}")
 
@@ -218,5 +238,6 @@ class _Session:
                     i,
                     d.kind,
                     [n.prediction for n in self.negs],
+                    [getattr(n, "evaluated", None) for n in self.negs],
                 )
             )

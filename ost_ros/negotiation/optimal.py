@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 from .errors import NegotiationError
 
 MAX_TARGETS = 14  # 2^N·N² table; beyond this use a heuristic, not this solver
+EXACT_ROUTE = 12  # one route of up to this many targets is exact; longer ones use ``heuristic_route``
 
 
 def subset_route_costs(start: ArrayLike, points: np.ndarray) -> np.ndarray:
@@ -51,9 +52,44 @@ def subset_route_costs(start: ArrayLike, points: np.ndarray) -> np.ndarray:
 
 
 def route_length(start: ArrayLike, points: np.ndarray) -> float:
-    """Shortest open path from start through all points (exact)."""
+    """Shortest open path from start through all points: exact (Held–Karp) up to
+    ``EXACT_ROUTE`` points, the nearest-neighbour + 2-opt tour of ``heuristic_route`` above."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    if len(pts) > EXACT_ROUTE:
+        return heuristic_route(start, pts)
     return float(subset_route_costs(start, pts)[(1 << len(pts)) - 1]) if len(pts) else 0.0
+
+
+def route_is_exact(n: int) -> bool:
+    """Whether ``route_length`` of n points is the exact shortest path."""
+    return n <= EXACT_ROUTE
+
+
+def heuristic_route(start: ArrayLike, points: np.ndarray, max_passes: int = 50) -> float:
+    """An open path from start through every point: nearest neighbour, then 2-opt moves until
+    none shortens it (at most ``max_passes`` sweeps, so the work is bounded). Deterministic."""
+    pts = np.vstack([np.asarray(start, dtype=float).reshape(1, 2), np.asarray(points, dtype=float)])
+    n = len(pts)
+    d = np.hypot(pts[:, None, 0] - pts[None, :, 0], pts[:, None, 1] - pts[None, :, 1])
+    order, left = [0], set(range(1, n))
+    while left:
+        nxt = min(left, key=lambda j: (d[order[-1], j], j))
+        order.append(nxt)
+        left.discard(nxt)
+    for _ in range(max_passes):
+        improved = False
+        for i in range(1, n - 1):
+            for k in range(i + 1, n):
+                a, b = order[i - 1], order[i]
+                # reversing order[i..k]: an open path has no edge after its last point
+                after = d[order[k], order[k + 1]] if k + 1 < n else 0.0
+                new_after = d[b, order[k + 1]] if k + 1 < n else 0.0
+                if d[a, order[k]] + new_after < d[a, b] + after - 1e-12:
+                    order[i : k + 1] = order[i : k + 1][::-1]
+                    improved = True
+        if not improved:
+            break
+    return float(sum(d[order[i], order[i + 1]] for i in range(n - 1)))
 
 
 @dataclass(frozen=True)

@@ -290,8 +290,10 @@ class SearchReward(AreaReward):
         t = self.terms(task, share, others)
         return super().value(task, share, others) - self.w_rect * t["waste"] - self.w_size * t["size"]
 
-    def batch_values(self, task: AreaTask, polys: np.ndarray, others) -> np.ndarray:
-        out = super().batch_values(task, polys, others)
+    def batch_values(
+        self, task: AreaTask, polys: np.ndarray, others, inside_known: bool = False
+    ) -> np.ndarray:
+        out = super().batch_values(task, polys, others, inside_known)
         ok = np.isfinite(out)
         if ok.any():
             p = polys[ok]
@@ -645,6 +647,7 @@ def negotiate_partition(team: SearchTeam, search: AreaSearch | None = None) -> P
         max_rounds=team.max_rounds,
         search=search or setup.search,
         trace=False,
+        stopping="overlap",  # every cell must get an owner: the clipped, low-overlap rule
     )
     cells = rasterise(res.shares, team.width, team.height, team.scale)
     resolution = resolve(cells, allowed, [r.period for r in team.robots])

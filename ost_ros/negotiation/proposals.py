@@ -3,9 +3,9 @@
 * Areas: a small elitist evolutionary search over polygon vertices. It starts from the
   previous offer and from the response (the part of T0 the others left free), so the search
   "learns" where the opponents' claims and hidden constraints are.
-* Targets: a discrete step that drops contested points until the claim fits its size cap,
-  choosing the point whose removal raises the reward most; ties go to the farthest point
-  (§4.2) or to the one that shortens the route most (§5.1).
+* Targets: a complete search over which contested points to drop when the claim's size cap
+  falls (``search_target_offer``), ranked by the update rule: the furthest points (§4.2), the
+  drop that shortens the route most (§5.1), or the largest reward gain (``reward``).
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import combinations
 
 import numpy as np
 import shapely
@@ -127,14 +128,21 @@ def propose_area(
     rng: np.random.Generator,
     search: AreaSearch,
     region=None,
+    clip: bool = True,
 ) -> Polygon:
     """Best polygon near ``prev`` whose part inside the open region (T0 minus the shares of
     agents that already left) has area in [min_scale·cap, cap].
 
-    Genotype: rings of ``n_vertices`` points; phenotype: their part inside the region (area
-    outside T0 is worth nothing to anyone, so a rational claim never includes it).
+    Genotype: rings of ``n_vertices`` points. With ``clip`` the phenotype is their part inside
+    the region (area outside T0 is worth nothing to anyone, so a rational claim never includes
+    it); without, the ring itself is offered and scored, so the reward's out-of-T0 and overlap
+    penalties — not the search — keep it inside (the paper's protocol, Table 2's "area out").
     """
     region = task.t0 if region is None else region
+    # Unclipped offers are judged against what is still being negotiated: once partners have
+    # left with their shares, the rest is the task, and a ring reaching into a share already
+    # taken is partly outside it (the paper's "another round ... sharing the remaining task").
+    judged = task if clip or region is task.t0 else AreaTask(region)
     n = search.n_vertices
     seeds = [ring_coords(prev, n)]
     # Learning from the response: the part of our previous claim nobody else wants, and the
@@ -163,7 +171,14 @@ def propose_area(
         cand, clipped = scale_to_inside_area(
             raw, cap * np.concatenate([np.ones(len(parents)), scale]), region
         )
-        vals = reward.batch_values(task, clipped, others)
+        offered = clipped if clip else shapely.polygons(cand)
+        if not clip and reward.forbidden is not None:
+            # its own forbidden ground is cut out of every ring it could offer (private: the
+            # partner only ever sees the notch)
+            ok = shapely.is_valid(offered)
+            offered = offered.copy()
+            offered[ok] = shapely.difference(offered[ok], reward.forbidden)
+        vals = reward.batch_values(judged, offered, others, inside_known=clip)
         # Keep to the size rule (§3.2.1: dim T(t) = δ·dim T(t−1)): a claim whose part in the
         # region missed its size by more than 2 % only wins if nothing else is feasible.
         size = shapely.area(clipped)
@@ -173,15 +188,19 @@ def propose_area(
             else 0 * size
         )
         vals = np.where(dev <= 0.02, vals, -1e6 - dev)
+        if not clip:
+            # a sliver cannot be sent as an offer (the receiver refuses a zero-area polygon);
+            # unclipped rings are rescaled to their part in the region, which can leave one
+            vals = np.where(shapely.area(offered) > 1e-9, vals, -np.inf)
         if reward.forbidden is not None:
             # private constraints are hard: a claim on forbidden ground is never offered
-            ok = shapely.is_valid(clipped)
-            bad = np.zeros(len(clipped), dtype=bool)
-            bad[ok] = shapely.area(shapely.intersection(clipped[ok], reward.forbidden)) > 1e-12
+            ok = shapely.is_valid(offered)
+            bad = np.zeros(len(offered), dtype=bool)
+            bad[ok] = shapely.area(shapely.intersection(offered[ok], reward.forbidden)) > 1e-12
             vals = np.where(bad, -np.inf, vals)
         order = np.argsort(-vals)
         if vals[order[0]] > best_v:
-            best_v, best_poly = vals[order[0]], hole_free(largest_polygon(clipped[order[0]]))
+            best_v, best_poly = vals[order[0]], hole_free(largest_polygon(offered[order[0]]))
         keep = [k for k in order[: search.elites] if np.isfinite(vals[k])]
         if keep:
             parents = cand[keep]
@@ -194,35 +213,62 @@ def propose_area(
     return best_poly
 
 
-def drop_targets(
+DROP_RULES = ("furthest", "path", "reward")
+SEARCH_BUDGET = 5000  # drop sets ranked per offer; beyond it, one point at a time (bounded work)
+
+
+def search_target_offer(
     task: TargetTask,
     reward: TargetReward,
     prev: frozenset[int],
     cap: int,
     others: Sequence[frozenset[int]],
-    rule: str = "farthest",
+    rule: str = "furthest",
 ) -> frozenset[int]:
-    """Shrink a target claim to at most ``cap`` points, dropping only points someone else
-    also claims (dropping an uncontested point would leave it to nobody)."""
-    if rule not in ("farthest", "path"):
-        raise NegotiationError(f"unknown drop rule {rule!r} (expected farthest or path)")
-    cur = set(prev)
-    start = np.asarray(reward.start, dtype=float)
+    """The next target offer: ``prev`` shrunk to at most ``cap`` points.
+
+    Only points someone else also claims are dropped (dropping an uncontested one would leave
+    it to nobody, and §4.2 ends every run with G = N). Which ones is decided by a complete
+    search over the sets of contested points of the size to drop, ranked by the update rule:
+
+    * ``furthest`` (§4.2, "the offer update removes from the set the furthest one"): the points
+      furthest from the robot;
+    * ``path`` (§5.1, "removes … the one that reduces by the most the total path"): the set whose
+      removal shortens the robot's route p(S) most;
+    * ``reward``: the largest private reward g_i after the drop (points claimed by the most
+      partners first), the furthest breaking ties — this library's rule before the paper's.
+
+    The ranking is a complete enumeration (the paper's "complete discrete search", §3.2); when
+    more than ``SEARCH_BUDGET`` sets would have to be ranked it drops one point at a time with
+    the same ranking, so the work stays bounded.
+    """
+    if rule not in DROP_RULES:
+        raise NegotiationError(f"unknown drop rule {rule!r} (expected one of {', '.join(DROP_RULES)})")
+    cur = frozenset(prev)
     claimed = task.union(list(others))
-    while len(cur) > cap:
-        contested = sorted(j for j in cur if j in claimed)
-        if not contested:
-            break
-        base_route = route_length(start, task.points[sorted(cur)]) if rule == "path" else 0.0
+    contested = sorted(j for j in cur if j in claimed)
+    k = min(len(cur) - cap, len(contested))
+    if k <= 0:
+        return cur
+    if k > 1 and math.comb(len(contested), k) > SEARCH_BUDGET:
+        for _ in range(k):
+            cur = search_target_offer(task, reward, cur, len(cur) - 1, others, rule)
+        return cur
+    key = _drop_key(task, reward, cur, others, rule)
+    best = max(combinations(contested, k), key=key)
+    return cur - frozenset(best)
 
-        def key(j: int, base_route: float = base_route) -> tuple[float, float]:
-            rest = frozenset(cur - {j})
-            gain = reward.value(task, rest, others)
-            if rule == "farthest":
-                tie = float(np.hypot(*(task.points[j] - start)))
-            else:
-                tie = base_route - route_length(start, task.points[sorted(rest)])
-            return (round(gain, 12), tie)
 
-        cur.discard(max(contested, key=key))
-    return frozenset(cur)
+def _drop_key(task: TargetTask, reward: TargetReward, cur: frozenset[int], others, rule: str):
+    """Ranking of a drop set (larger is better); index order breaks exact ties (determinism)."""
+    start = np.asarray(reward.start, dtype=float)
+    dist = np.hypot(*(task.points - start).T)
+
+    def furthest(drop: tuple[int, ...]) -> tuple:
+        return tuple(sorted((round(float(dist[j]), 12) for j in drop), reverse=True))
+
+    if rule == "furthest":
+        return furthest
+    if rule == "path":
+        return lambda drop: -round(route_length(start, task.points[sorted(cur - frozenset(drop))]), 12)
+    return lambda drop: (round(reward.value(task, cur - frozenset(drop), others), 12), furthest(drop))

@@ -30,7 +30,8 @@ class AreaReward:
     − w_forbidden·dim(S ∩ F) − w_dist·dist(start, S).
 
     With ``value_inside=False`` the first term is the literal dim(S) (leaving T0 is then free,
-    +1 − 1, and the ill-shape term pushes claims outward). Defaults are §4.1 (1, 1, 2, 0.2); the §2.2 example uses w_overlap = 1, w_ill = 0 and a
+    +1 − 1, and the ill-shape term pushes claims outward); with ``value_inside`` (default) both
+    the first term and ill(S) are taken on S ∩ T0, the part of the claim that is task. Defaults are §4.1 (1, 1, 2, 0.2); the §2.2 example uses w_overlap = 1, w_ill = 0 and a
     forbidden zone F with w_forbidden = 1000.
     """
 
@@ -50,7 +51,7 @@ class AreaReward:
             "dim": task.dim(task.inside(share)) if self.value_inside else task.dim(share),
             "out": task.dim(task.outside(share)),
             "overlap": sum(task.dim(task.overlap(share, o)) for o in others),
-            "ill": ill_shape(share),
+            "ill": ill_shape(task.inside(share) if self.value_inside else share),
             "forbidden": self.constraint_violation(share),
             "dist": self._dist(share),
         }
@@ -77,8 +78,16 @@ class AreaReward:
             return 0.0
         return float(shapely.distance(shapely.Point(self.start), share))
 
-    def batch_values(self, task: AreaTask, polys: np.ndarray, others: Sequence[BaseGeometry]) -> np.ndarray:
-        """g for many candidate polygons at once (shapely's vectorised ops); invalid → −inf."""
+    def batch_values(
+        self,
+        task: AreaTask,
+        polys: np.ndarray,
+        others: Sequence[BaseGeometry],
+        inside_known: bool = False,
+    ) -> np.ndarray:
+        """g for many candidate polygons at once (shapely's vectorised ops); invalid → −inf.
+        ``inside_known``: the candidates lie in T0 already (clipped), so ill(S) is taken on them
+        as they are rather than on their intersection with T0 (the same value)."""
         out = np.full(len(polys), -np.inf)
         ok = shapely.is_valid(polys) & (shapely.area(polys) > 0)
         if not ok.any():
@@ -90,7 +99,15 @@ class AreaReward:
         for o in others:
             if not o.is_empty:
                 val -= self.w_overlap * shapely.area(shapely.intersection(p, o))
-        val -= self.w_ill * shapely.length(p) / area
+        if inside_known or not self.value_inside:
+            val -= self.w_ill * shapely.length(p) / area
+        elif self.w_ill:
+            # the sub-task is its part in T0 (value_inside): a bulge outside T0 must not make a
+            # claim look rounder; a claim with nothing inside is worth nothing anyway
+            shape = shapely.intersection(p, task.t0)
+            shape_area = shapely.area(shape)
+            ill = np.where(shape_area > 0, shapely.length(shape) / np.maximum(shape_area, 1e-300), 0.0)
+            val -= self.w_ill * ill
         if self.forbidden is not None:
             val -= self.w_forbidden * shapely.area(shapely.intersection(p, self.forbidden))
         if self.start is not None and self.w_dist:

@@ -23,20 +23,41 @@ TARGET_DELTA = 0.9  # §4.2 gives none; see interpretation notes
 FIG4_DELTAS = (0.95, 0.955)  # Fig. 4
 
 
-def fig4(seed: int = 0, search: AreaSearch | None = None) -> NegotiationResult:
+def fig4(seed: int = 0, search: AreaSearch | None = None, stopping: str = "paper") -> NegotiationResult:
     """Two agents, δ = 0.95 / 0.955, split a polygon of area 0.74 (§3.2.3)."""
     task = AreaTask(make_task_polygon(0.74))
-    return negotiate(task, [AgentSpec(d) for d in FIG4_DELTAS], seed=seed, search=search)
+    return negotiate(task, [AgentSpec(d) for d in FIG4_DELTAS], seed=seed, search=search, stopping=stopping)
 
 
-def table2_run(robots: int, seed: int, search: AreaSearch | None = None) -> dict[str, Any]:
+def offer_ratios(task: AreaTask, res: NegotiationResult) -> list[float]:
+    """dim of each agent's offer (inside T0) over its previous offer's, for every pair of
+    consecutive offers: how closely the claims kept the size rule dim T(t) = δ·dim T(t−1)."""
+    last: dict[int, float] = {}
+    out = []
+    for msg in res.log:
+        if msg.kind != "offer":
+            continue
+        size = task.dim(task.inside(task.decode(msg.params)))
+        if msg.sender in last and last[msg.sender] > 0:
+            out.append(size / last[msg.sender])
+        last[msg.sender] = size
+    return out
+
+
+def table2_run(
+    robots: int, seed: int, search: AreaSearch | None = None, stopping: str = "paper"
+) -> dict[str, Any]:
     """One run of Table 2: R agents, δ = 0.98, the 6-vertex polygon of area 0.673."""
     task = AreaTask(make_task_polygon(0.673))
-    res = negotiate(task, [AgentSpec(AREA_DELTA)] * robots, seed=seed, search=search, trace=False)
+    res = negotiate(
+        task, [AgentSpec(AREA_DELTA)] * robots, seed=seed, search=search, trace=False, stopping=stopping
+    )
     m = res.metrics()
+    ratios = offer_ratios(task, res)
     return {
         "R": robots,
         "seed": seed,
+        "stopping": stopping,
         "status": res.status,
         "messages": res.messages,
         "overlap_pct": 100 * m["overlap"],
@@ -44,17 +65,28 @@ def table2_run(robots: int, seed: int, search: AreaSearch | None = None) -> dict
         "covered_pct": 100 * m["covered"],
         "out_pct": 100 * m["out"],
         "rounds": res.rounds,
+        "offer_ratio": float(np.mean(ratios)) if ratios else float("nan"),
+        "min_share": min(task.dim(task.inside(s)) for s in res.shares) / task.size,
+        "max_share": max(task.dim(task.inside(s)) for s in res.shares) / task.size,
         "shares": [list(task.encode(s)) for s in res.shares],
     }
 
 
-def nfz_zone(task: AreaTask) -> Polygon:
-    """A 0.03-area square no-fly zone in a corner of T0 (§2.2: dim(NFZ) = 0.03)."""
-    side = 0.03**0.5
-    minx, _, maxx, maxy = task.t0.bounds
+def nfz_zone(task: AreaTask, area: float = 0.03) -> Polygon:
+    """A no-fly zone of ``area`` (§2.2: dim(NFZ) = 0.03) on T0's bottom edge: a strip as wide
+    as a 0.03 square, cut to T0. On the edge, T0 without it is still one ring (a notch), so the
+    constrained robot can open, like its partner, with the biggest share it can take."""
+    side = area**0.5
+    minx, miny, maxx, maxy = task.t0.bounds
     cx = (minx + maxx) / 2
-    zone = box(cx - side / 2, maxy - 0.12 - side, cx + side / 2, maxy - 0.12)
-    return zone.intersection(task.t0)
+    lo, hi = miny, maxy
+    for _ in range(60):  # bisect the strip's top so its part in T0 has the area asked for
+        mid = (lo + hi) / 2
+        if box(cx - side / 2, miny - 1, cx + side / 2, mid).intersection(task.t0).area < area:
+            lo = mid
+        else:
+            hi = mid
+    return box(cx - side / 2, miny - 1, cx + side / 2, hi).intersection(task.t0)
 
 
 def nfz_run(seed: int) -> dict[str, Any]:
@@ -69,6 +101,7 @@ def nfz_run(seed: int) -> dict[str, Any]:
         seed=seed,
         trace=False,
     )
+    opening = {m.sender: task.dim(task.decode(m.params)) / task.size for m in res.log[:2]}
     s1, s2 = res.shares
     m = res.metrics()
     return {
@@ -78,6 +111,8 @@ def nfz_run(seed: int) -> dict[str, Any]:
         "dim_S1": s1.area,
         "dim_S2": s2.area,
         "overlap": s1.intersection(s2).area,
+        "open_S1": opening[0],
+        "open_S2": opening[1],
         "nfz_in_S1": s1.intersection(zone).area,
         "nfz_in_S2": s2.intersection(zone).area,
         "G": m["G"],
@@ -99,7 +134,7 @@ def target_run(
     robots: int,
     run: int,
     strategy: str = "rounds",
-    rule: str = "farthest",
+    rule: str = "furthest",
     delta: float = TARGET_DELTA,
     seed: int = 0,
 ) -> dict[str, Any]:
@@ -116,7 +151,8 @@ def target_run(
         trace=False,
     )
     neg = evaluate_allocation(starts, pts, res.shares)
-    best_total = optimal_allocation(starts, pts, "total").total
+    opt_total = optimal_allocation(starts, pts, "total")
+    best_total = opt_total.total
     best_max = optimal_allocation(starts, pts, "max").max_individual
     m = res.metrics()
     return {
@@ -133,9 +169,14 @@ def target_run(
         "total": neg.total,
         "opt_total": best_total,
         "max": neg.max_individual,
+        "opt_total_max": opt_total.max_individual,
         "opt_max": best_max,
         "excess_total_pct": 100 * (neg.total - best_total) / best_total,
-        "excess_max_pct": 100 * (neg.max_individual - best_max) / best_max,
+        # Table 4 as the text reads: the negotiated longest route against the longest route of
+        # the minimum-total optimum (negative: the negotiation spreads the work better) ...
+        "excess_max_pct": 100 * (neg.max_individual - opt_total.max_individual) / opt_total.max_individual,
+        # ... and the other reading, against the optimum of the longest route itself (never < 0)
+        "excess_minmax_pct": 100 * (neg.max_individual - best_max) / best_max,
     }
 
 
@@ -165,3 +206,40 @@ class PaperValues:
         6: (22.4, 31.4, 56.6, 55.9, 61.6, 60.9),
         7: (1.3, 32.9, 51.2, 58.5, 57.5, 60.1),
     }
+
+
+# ---------------------------------------------------------------- §5.1 --------------------------
+MISSION_SIDE = 15.0  # metres: "target points, located in an area of 15×15 metres"
+MISSION_DELTAS = ((0.887, 0.877, 0.867), (0.887, 0.867, 0.877))  # Fig. 6 left / right
+MISSION_STARTS = ((6.5, 7.5), (7.5, 7.5), (8.5, 7.5))  # "the squares in the centre", R1 leftmost
+
+
+def mission_run(layout: int, deltas: tuple[float, ...], seed: int = 0) -> dict[str, Any]:
+    """§5.1: three robots in the centre of a 15×15 m field negotiate five random target points
+    with g_i = dim(S_i) − Σ overlap − p(S_i) (the shortest path, metres over the field's side)
+    and the §5.1 update (drop the point that shortens the path most); distances in metres."""
+    rng = np.random.default_rng([seed, 51, layout])
+    pts = rng.random((5, 2)) * MISSION_SIDE
+    unit = MISSION_SIDE
+    task = TargetTask.from_points(pts / unit)
+    starts = np.asarray(MISSION_STARTS) / unit
+    agents = [AgentSpec(d, TargetReward(start=tuple(s), w_path=1.0)) for d, s in zip(deltas, starts)]
+    res = negotiate(task, agents, drop_rule="path", seed=seed * 1000 + layout, trace=False)
+    neg = evaluate_allocation(starts, task.points, res.shares)
+    opt = optimal_allocation(starts, task.points, "total")
+    return {
+        "layout": layout,
+        "deltas": "/".join(f"{d:g}" for d in deltas),
+        "status": res.status,
+        "rounds": res.rounds,
+        "targets": [sorted(s) for s in res.shares],
+        "counts": [len(s) for s in res.shares],
+        "total_m": neg.total * unit,
+        "opt_total_m": opt.total * unit,
+        "excess_pct": 100 * (neg.total - opt.total) / opt.total,
+    }
+
+
+def claim_schedule(delta: float, n: int, offers: int) -> list[int]:
+    """⌊δ^t·N⌋ for t = 0..offers−1: the number of points a robot may claim at its t-th offer."""
+    return [int(np.floor(delta**t * n + 1e-9)) for t in range(offers)]

@@ -35,6 +35,10 @@ def ost(*args, timeout=120):
         (["run", "--task", "targets", "--targets", "0"], "at least one target"),
         (["run", "--delta", "0.9,0.8,0.7", "--robots", "2"], "3 discount factors for 2 robots"),
         (["reproduce", "--out", "/tmp/x", "--runs", "0"], "--runs"),
+        (["run", "--seed", "-1"], "--seed"),
+        (["reproduce", "--out", "/tmp/x", "--seed", "-1"], "--seed"),
+        (["run", "--task", "targets", "--drop-rule", "nearest"], "unknown drop rule"),
+        (["run", "--stopping", "never"], "unknown stopping rule"),
     ],
 )
 def test_bad_input_is_one_line_exit_2(args, msg):
@@ -74,6 +78,20 @@ def test_run_targets_json():
     assert sorted(j for r in out["robots"] for j in r["targets"]) == list(range(6))
 
 
+def test_run_targets_beyond_the_exact_route_solver():
+    """40 targets: routes of more than 12 points come from the bounded heuristic, said so."""
+    p = ost("run", "--task", "targets", "--targets", "40", "--robots", "2")
+    assert p.returncode == 0, p.stderr
+    assert "nearest neighbour + 2-opt" in p.stdout and "Traceback" not in p.stderr
+
+
+def test_task_file_with_negative_seed_is_refused(tmp_path):
+    f = tmp_path / "task.yaml"
+    f.write_text("task: targets\nseed: -3\n")
+    p = ost("run", "--file", str(f))
+    assert p.returncode == 2 and "seed must be 0 or more" in p.stderr
+
+
 def test_run_area_from_file_with_nfz(tmp_path):
     f = tmp_path / "task.yaml"
     f.write_text(
@@ -111,10 +129,11 @@ def test_reproduce_quick_writes_report(tmp_path):
         "table4.csv",
         "nfz.csv",
         "nfz.png",
-        "targets_strategies.csv",
+        "targets_rules.csv",
+        "missions.csv",
         "table2_partitions.png",
     ):
         assert (tmp_path / name).stat().st_size > 0, name
     report = (tmp_path / "report.md").read_text()
-    for heading in ("Fig. 4", "Table 2", "Table 3", "Table 4", "no-fly zone"):
+    for heading in ("Fig. 4", "Table 2", "Table 3", "Table 4", "no-fly zone", "§5.1"):
         assert heading in report
