@@ -244,6 +244,7 @@ def _tables34(out: Path, results: dict, cfg: Plan, combos: list, seed: int) -> d
                 runs = [results[("tgt", (n, r, k, strategy, rule, seed))] for k in range(cfg.target_runs)]
                 rows += runs
                 cell = {k: float(np.mean([x[k] for x in runs])) for k in TGT_KEYS}
+                cell |= {f"{k}_sd": float(np.std([x[k] for x in runs])) for k in TGT_KEYS[:3]}
                 cell["ok"] = all(
                     abs(x["G"] - n) < 1e-9 and x["overlap"] == 0 and x["status"] == "agreed" for x in runs
                 )
@@ -557,6 +558,7 @@ def _report_tables34(add, t34: dict, summary: dict) -> None:
     t3 = grid("rounds", "furthest", "excess_total_pct")
     t4 = grid("rounds", "furthest", "excess_max_pct")
     t4m = grid("rounds", "furthest", "excess_minmax_pct")
+    t3sd, t4sd, t4msd = (grid("rounds", "furthest", f"{k}_sd") for k in TGT_KEYS[:3])
     ok = all(t34["cells"][("rounds", "furthest", r, n)]["ok"] for r in TGT_R for n in TGT_N)
     head = "| R \\ N | " + " | ".join(str(n) for n in TGT_N) + " |"
     sep = "|---|" + "---|" * len(TGT_N)
@@ -566,12 +568,19 @@ def _report_tables34(add, t34: dict, summary: dict) -> None:
         "Distances are open routes; the optimum is exact (branch and bound over assignments, Held–Karp "
         "routes)."
     )
-    add("## Table 3 — targets, excess total distance vs the minimum-total optimum (%), ours (paper)\n")
+    add(
+        "## Table 3 — targets, excess total distance vs the minimum-total optimum (%), ours "
+        "(mean ± sd over runs) and the paper's\n"
+    )
     add(setup + "\n")
     add(head)
     add(sep)
     for i, r in enumerate(TGT_R):
-        add(f"| {r} | " + " | ".join(f"{t3[i, j]:.1f} ({p3[i, j]})" for j in range(len(TGT_N))) + " |")
+        add(
+            f"| {r} | "
+            + " | ".join(f"{t3[i, j]:.1f} ± {t3sd[i, j]:.1f} ({p3[i, j]})" for j in range(len(TGT_N)))
+            + " |"
+        )
     add(
         f"\nOurs ≤ paper in {int((t3 <= p3).sum())} of {t3.size} cells; every run ends with G = N, no point "
         f"claimed twice and every robot agreed: {'yes' if ok else '**no**'}."
@@ -588,7 +597,7 @@ def _report_tables34(add, t34: dict, summary: dict) -> None:
         )
     add("")
     add(
-        "## Table 4 — targets, maximum individual distance (%), ours (paper)\n\n"
+        "## Table 4 — targets, maximum individual distance (%), ours (mean ± sd over runs) and the paper's\n\n"
         'The paper: "Table 4 shows how the maximum individual distance travelled improves in the case of '
         'the distributed solution" against an optimum that "may imply that one of a few robots do most of '
         'the work". Read so, each cell compares the negotiated longest route with the longest route of the '
@@ -596,15 +605,19 @@ def _report_tables34(add, t34: dict, summary: dict) -> None:
         "drops minus signs, so the paper's values are shown negative. Beside it, the other reading: against "
         "the allocation that minimises the longest route itself (never negative).\n"
     )
-    for title, g, paper in (
-        ("against the minimum-total optimum's longest route, ours (paper, read as negative)", t4, -p4),
-        ("other reading: against the min-max optimum, ours (paper as printed)", t4m, p4),
+    for title, g, gsd, paper in (
+        ("against the minimum-total optimum's longest route, ours (paper, read as negative)", t4, t4sd, -p4),
+        ("other reading: against the min-max optimum, ours (paper as printed)", t4m, t4msd, p4),
     ):
         add(f"{title}:\n")
         add(head)
         add(sep)
         for i, r in enumerate(TGT_R):
-            add(f"| {r} | " + " | ".join(f"{g[i, j]:.1f} ({paper[i, j]})" for j in range(len(TGT_N))) + " |")
+            add(
+                f"| {r} | "
+                + " | ".join(f"{g[i, j]:.1f} ± {gsd[i, j]:.1f} ({paper[i, j]})" for j in range(len(TGT_N)))
+                + " |"
+            )
         add("")
     add(
         f"\nThe negotiated longest route is shorter than the minimum-total optimum's in {int((t4 < 0).sum())} of "
