@@ -17,7 +17,7 @@ import numpy as np
 from .agents import AgentSpec, AreaNegotiator, TargetNegotiator
 from .errors import NegotiationError
 from .messages import BROADCAST, Offer
-from .proposals import DROP_RULES, AreaSearch
+from .proposals import AreaSearch, check_drop_rule
 from .rewards import global_coverage
 from .tasks import AreaTask, TargetTask
 
@@ -105,7 +105,8 @@ def negotiate(
     stopping (areas): ``paper`` — an agent accepts or leaves when the share the others leave it
     reaches its Rubinstein prediction (Eq. 3); ``overlap`` — also once its claim overlaps the
     others' by at most ``exit_overlap`` of dim(T0), with claims clipped to T0 (``AreaNegotiator``).
-    drop_rule (targets): ``furthest`` (§4.2), ``path`` (§5.1) or ``reward``. rounds: each round every active agent takes one turn, in agent order starting with agent
+    drop_rule (targets): ``furthest`` (§4.2), ``path`` (§5.1) or ``reward``.
+    rounds: each round every active agent takes one turn, in agent order starting with agent
     (round mod R) — the starter rotates. all-against-all: each round, every ordered pair
     (i, j) holds one bilateral exchange in which i answers j's claim alone.
     """
@@ -153,10 +154,7 @@ def _negotiators(
             for i, a in enumerate(agents)
         ]
     if isinstance(task, TargetTask):
-        if drop_rule not in DROP_RULES:
-            raise NegotiationError(
-                f"unknown drop rule {drop_rule!r} (expected one of {', '.join(DROP_RULES)})"
-            )
+        check_drop_rule(drop_rule)  # before the first turn, not at the first drop
         return [TargetNegotiator(i, a, task, i == 0, rngs[i], drop_rule) for i, a in enumerate(agents)]
     raise NegotiationError(f"unknown task type {type(task).__name__}")
 

@@ -217,6 +217,13 @@ DROP_RULES = ("furthest", "path", "reward")
 SEARCH_BUDGET = 5000  # drop sets ranked per offer; beyond it, one point at a time (bounded work)
 
 
+def check_drop_rule(rule: str) -> str:
+    """``rule`` if it is one of ``DROP_RULES``, else a one-line NegotiationError."""
+    if rule not in DROP_RULES:
+        raise NegotiationError(f"unknown drop rule {rule!r} (expected one of {', '.join(DROP_RULES)})")
+    return rule
+
+
 def search_target_offer(
     task: TargetTask,
     reward: TargetReward,
@@ -242,8 +249,7 @@ def search_target_offer(
     more than ``SEARCH_BUDGET`` sets would have to be ranked it drops one point at a time with
     the same ranking, so the work stays bounded.
     """
-    if rule not in DROP_RULES:
-        raise NegotiationError(f"unknown drop rule {rule!r} (expected one of {', '.join(DROP_RULES)})")
+    check_drop_rule(rule)
     cur = frozenset(prev)
     claimed = task.union(list(others))
     contested = sorted(j for j in cur if j in claimed)

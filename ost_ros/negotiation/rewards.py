@@ -31,7 +31,8 @@ class AreaReward:
 
     With ``value_inside=False`` the first term is the literal dim(S) (leaving T0 is then free,
     +1 − 1, and the ill-shape term pushes claims outward); with ``value_inside`` (default) both
-    the first term and ill(S) are taken on S ∩ T0, the part of the claim that is task. Defaults are §4.1 (1, 1, 2, 0.2); the §2.2 example uses w_overlap = 1, w_ill = 0 and a
+    the first term and ill(S) are taken on S ∩ T0, the part of the claim that is task.
+    Defaults are §4.1 (1, 1, 2, 0.2); the §2.2 example uses w_overlap = 1, w_ill = 0 and a
     forbidden zone F with w_forbidden = 1000.
     """
 
