@@ -3,24 +3,38 @@ Coordination on the same shared knowledge and so holds the same global schedule.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from ost_msgs_py.messages import ObjectFound, ScheduleUpdate, SearchDone, Selection, Status
 from ost_ros.coordination import ORGANISATIONS, CoordinationPolicy
-from ost_ros.protocols.base import Capabilities, ProtocolSpec
+from ost_ros.planner import PLANNERS, check_planner
+from ost_ros.protocols.base import Capabilities, Option, ProtocolSpec
 from ost_ros.protocols.ccp.comm import CcpComm
 from ost_ros.protocols.shared.agent import STATES, ScheduleAgent
 from ost_ros.team import TeamInfo
 
 
+@dataclass(frozen=True)
+class CcpSettings:
+    """CCP parameters, the same for every agent (every agent must compute the same schedule)."""
+
+    planner: str = "paper"  # Algorithm Coordination as published, or ost_ros.planner's improvement
+
+    def __post_init__(self) -> None:
+        check_planner(self.planner)
+
+
 def make_agent(
     agent_id: int, team: TeamInfo, policy: CoordinationPolicy, settings: Any = None
 ) -> ScheduleAgent:
-    return ScheduleAgent(agent_id, team, CcpComm(agent_id, team, policy), "ccp")
+    planner = (settings or CcpSettings()).planner
+    return ScheduleAgent(agent_id, team, CcpComm(agent_id, team, policy, planner=planner), "ccp")
 
 
 def team_comm(team: TeamInfo, policy: CoordinationPolicy, settings: Any = None) -> CcpComm:
-    return CcpComm(team.agent_ids[0], team, policy, voices=team.agent_ids)
+    planner = (settings or CcpSettings()).planner
+    return CcpComm(team.agent_ids[0], team, policy, voices=team.agent_ids, planner=planner)
 
 
 SPEC = ProtocolSpec(
@@ -37,6 +51,15 @@ SPEC = ProtocolSpec(
         heterogeneous=True,
         triggers=True,
         team_knowledge=True,
+    ),
+    settings=CcpSettings,
+    options=(
+        Option(
+            "planner",
+            "planner",
+            f"who plans at a coordination point: {' or '.join(PLANNERS)} (paper: Algorithm "
+            "Coordination; improved: re-plans what has not started, then a bounded local search)",
+        ),
     ),
     team_comm=team_comm,
 )

@@ -38,6 +38,7 @@ from ost_msgs_py.messages import (
 )
 from ost_ros.coordination import Assignment, CoordinationPolicy, coordinate
 from ost_ros.model import Cell, group_period
+from ost_ros.planner import improve
 from ost_ros.protocols.shared.knowledge import Knowledge, QueuedMessages
 from ost_ros.protocols.shared.recovery import Sweep, drop_cell, remaining_sweep
 from ost_ros.team import TeamInfo
@@ -62,6 +63,7 @@ class CcpComm(QueuedMessages):
     team: TeamInfo
     policy: CoordinationPolicy
     voices: tuple[int, ...] = ()
+    planner: str = "paper"  # "improved": re-plan what has not started (ost_ros.planner)
     state: CommState = CommState.LISTENING
     # Failures: dead agent -> step it failed in; the step a failure was learnt in (statuses are
     # due the next step); survivors' statuses; objects no survivor group is large enough for;
@@ -72,6 +74,7 @@ class CcpComm(QueuedMessages):
     impossible: set[int] = field(default_factory=set)
     orphans: list[tuple[Cell, ...]] = field(default_factory=list)
     reset: bool = False  # the agent drops its not-started tasks (set on a failure)
+    replanned: bool = False  # the improved planner moved tasks not taken up yet
     # Coordinator organisation: objects set aside for the coordinator's next update, and
     # whether that update is the final one.
     awaiting: set[int] = field(default_factory=set)
@@ -170,18 +173,33 @@ class CcpComm(QueuedMessages):
             and all(j in self.knowledge.searched for j in self.alive)
         )
 
-    def _schedule_batch(self, t: int, batch: list[int]):
-        """Algorithm Coordination of ``batch`` among the survivors, for steps after ``t``."""
+    def _schedule_batch(self, t: int, batch: list[int], hint: list[int] | None = None):
+        """Algorithm Coordination of ``batch`` among the survivors, for steps after ``t`` (with
+        the improved planner: starting from ``hint``, the plan as it stood, if it is better)."""
         cost, loc = self.knowledge.costs(t)
         idx = [self.team.index(j) for j in self.alive]
         periods = self.team.speed_periods
-        return coordinate(
+        args = (
             self.alive,
             cost[idx],
             loc[idx],
             [self.knowledge.objects[i] for i in batch],
-            None if periods is None else [periods[k] for k in idx],
         )
+        per = None if periods is None else [periods[k] for k in idx]
+        if self.planner == "improved":
+            return improve(*args, [self.team.bases[k] for k in idx], per, hint=hint or ())
+        return coordinate(*args, per)
+
+    def _reopen(self, t: int) -> list[int]:
+        """Improved planner: take what no member has taken up by step t+1 back out of the
+        schedule (its objects, in the order they were planned)."""
+        k = self.knowledge
+        if self.planner != "improved":
+            return []
+        reopened = k.reopen(k.open_entries(t + 1))
+        if reopened:
+            self.replanned = True
+        return reopened
 
     def _coordinate(self, t: int, final: bool = False) -> None:
         k = self.knowledge
@@ -196,7 +214,8 @@ class CcpComm(QueuedMessages):
             self._hand_to_coordinator(t, final)
             return
         self.state = CommState.COORDINATING
-        result = self._schedule_batch(t, sorted(k.unscheduled))
+        reopened = self._reopen(t)
+        result = self._schedule_batch(t, reopened + sorted(k.unscheduled), reopened)
         k.assign(result.schedule)
         k.unscheduled.clear()
         k.coordinations += 1
@@ -350,6 +369,7 @@ class CcpComm(QueuedMessages):
             k.free_at[i] = st.free_at
             k.free_loc[i] = st.location
             k.lengths[i] = min(k.lengths[i], st.free_at)
+        k.rebase()  # what is planned from here on starts where each survivor says it stands
         periods = self.team.period_array()
         for cells in self.orphans:
             cost, loc = k.costs(t)

@@ -55,6 +55,7 @@ class NcpComm(QueuedMessages):
     # NCP does not recover from failures (the registry refuses them): nothing to recover or reset.
     recovering: int | None = None
     reset: bool = False
+    replanned: bool = False
 
     def __post_init__(self) -> None:
         self.knowledge = Knowledge(self.me, self.team)

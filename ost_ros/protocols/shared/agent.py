@@ -68,6 +68,7 @@ class ScheduleComm(Protocol):
     knowledge: Knowledge
     recovering: int | None  # the step a failure was learnt in (Status due the next step)
     reset: bool  # a failure cancelled the tasks not under way
+    replanned: bool  # tasks not taken up yet were planned anew (CCP's improved planner)
 
     def receive(self, t: int, messages: Sequence[AgentMessage]) -> None: ...
     def drain(self) -> list[AgentMessage]: ...
@@ -99,6 +100,7 @@ class ScheduleAgent:
         self.tasks: deque[Assignment | Sweep] = deque()  # own schedule, in scheduling order
         self.current: Assignment | None = None
         self._seen_schedule = 0  # how much of the global schedule was read
+        self._taken = 0  # own entries of the global schedule taken up so far
         self._outbox: list[AgentMessage] = []
 
     # ------------------------------------------------------------------ step, part 1: act
@@ -166,12 +168,14 @@ class ScheduleAgent:
         if self.tasks and isinstance(self.tasks[0], Sweep):
             # a failed team mate's unsearched cells: sweep them (sensing from here on)
             sweep = self.tasks.popleft()
+            self._taken += 1
             assert isinstance(sweep, Sweep)
             self.search = SearchModule(list(sweep.path))
             self.state = GlobalState.SEARCHING
             self._search(obs)
         elif self.tasks:
             task = self.tasks.popleft()
+            self._taken += 1
             assert isinstance(task, Assignment)
             self.current = task
             self.state = GlobalState.HELPING
@@ -208,12 +212,25 @@ class ScheduleAgent:
         self.comm.receive(t, messages)
         if self.comm.reset:
             self._drop_cancelled()
+        if self.comm.replanned:
+            self._resync()
+
+    def _own(self) -> list[Assignment | Sweep]:
+        return [a for a in self.knowledge.schedule if self.id in a.agents]
+
+    def _resync(self) -> None:
+        """Tasks not taken up yet were planned anew: what it has taken up stays first in its
+        part of the schedule (the planner keeps it), the rest is its new task list."""
+        self.comm.replanned = False
+        self.tasks = deque(self._own()[self._taken :])
+        self._seen_schedule = len(self.knowledge.schedule)
 
     def _drop_cancelled(self) -> None:
         """A team mate failed: keep only what is under way (a carry without it, a sweep)."""
         self.comm.reset = False
         self.tasks.clear()
         self._seen_schedule = len(self.knowledge.schedule)  # kept entries are done or under way
+        self._taken = len(self._own())
         if self.current is not None and self.current not in self.knowledge.schedule:
             self.current = None
         if self.current is None and self.state not in (GlobalState.SEARCHING, GlobalState.DECISION):

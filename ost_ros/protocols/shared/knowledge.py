@@ -44,6 +44,10 @@ class Knowledge:
         self.lengths = self.team.sweep_lengths()  # when each agent's search work ends
         self.free_at = np.zeros(n, dtype=np.int64)  # finish of each agent's last scheduled object
         self.free_loc = self.team.sweep_ends()  # where it then stands (sweep end if none)
+        # What the schedule extends: each agent's free time and place before the entries from
+        # ``base_len`` on (the start; after a failure, the survivors' statuses).
+        self.base_len = 0
+        self.base_at, self.base_loc = self.free_at.copy(), self.free_loc.copy()
 
     def note_found(self, obj: ObjectSpec, t: int) -> bool:
         """Store an object (sensed or heard of); True if it was new."""
@@ -68,6 +72,63 @@ class Knowledge:
             self.free_at[members] = a.finish
             self.free_loc[members] = self.objects[a.object].destination
         self.schedule.extend(assignments)
+
+    def rebase(self) -> None:
+        """The free times and places as they stand are the new base (after a failure's statuses)."""
+        self.base_len = len(self.schedule)
+        self.base_at, self.base_loc = self.free_at.copy(), self.free_loc.copy()
+
+    def open_entries(self, s: int) -> list[int]:
+        """Positions in the schedule of the objects a plan for steps from ``s`` may re-plan: no
+        member has taken it up, or can have by step s, and no kept task of a member follows it.
+
+        An agent takes up its next task the step it is free (search over, last carry
+        delivered); that task and everything before it stays, for every member, so every kept
+        entry executes exactly as planned. Take-over sweeps and entries before the last failure
+        stay. Computed from the schedule alone: every agent finds the same positions."""
+        sched = self.schedule
+        kept = set(range(self.base_len))
+        own: dict[int, list[int]] = {}
+        for pos in range(self.base_len, len(sched)):
+            e = sched[pos]
+            if isinstance(e, Sweep) or e.start <= s:
+                kept.add(pos)
+            for j in e.agents:
+                own.setdefault(j, []).append(pos)
+        for j, mine in own.items():
+            i = self.team.index(j)
+            free = max(int(self.lengths[i]), int(self.base_at[i]))
+            for pos in mine:
+                if free > s:
+                    break
+                kept.add(pos)  # done, under way, or taken up by step s
+                free = max(free, sched[pos].finish)
+        changed = True
+        while changed:  # a kept task keeps every earlier task of each of its members
+            changed = False
+            for mine in own.values():
+                last = max((k for k, pos in enumerate(mine) if pos in kept), default=-1)
+                for pos in mine[:last]:
+                    if pos not in kept:
+                        kept.add(pos)
+                        changed = True
+        return [pos for pos in range(len(sched)) if pos not in kept]
+
+    def reopen(self, positions: Sequence[int]) -> list[int]:
+        """Take the entries at ``positions`` out of the schedule (their objects, in schedule
+        order) and move every agent's free time and place back to its last kept entry."""
+        drop = set(positions)
+        objects = [self.schedule[p].object for p in sorted(drop)]  # type: ignore[union-attr]
+        self.schedule[:] = [e for p, e in enumerate(self.schedule) if p not in drop]
+        self.free_at, self.free_loc = self.base_at.copy(), self.base_loc.copy()
+        for e in self.schedule[self.base_len :]:
+            members = [self.team.index(j) for j in e.agents]
+            self.free_at[members] = e.finish
+            if isinstance(e, Sweep):
+                self.free_loc[members] = e.path[-1]
+            else:
+                self.free_loc[members] = self.objects[e.object].destination
+        return objects
 
     def predict_makespan(self, t: int, agents: Sequence[int]) -> int:
         """When the last of ``agents`` is home, if the schedule as it stands is all there is."""
