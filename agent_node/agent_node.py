@@ -64,7 +64,7 @@ class AgentNode(Node):
         self.runner = AgentRunner(self, scenario, policy, runtime)
 
 
-OPTIONS = [o for spec in protocols.REGISTRY.values() for o in spec.options]
+OPTIONS = list({o.name: o for spec in protocols.REGISTRY.values() for o in spec.options}.values())
 
 
 def load_agent(node: Node) -> tuple[Scenario, CoordinationPolicy, AgentRuntime]:
@@ -345,9 +345,12 @@ def declare(node: Node) -> None:
     p("scenario", "", "scenario YAML file (ost generate); every node of a run loads the same")
     p("agents", 0, "team size override (0: the scenario's team)", 0, 100_000)
     p("protocol", "ccp", "cooperation protocol", constraints="one of " + ", ".join(protocols.names()))
+    seen: set[str] = set()
     for spec in protocols.REGISTRY.values():
         for opt in spec.options:
-            p(opt.name, protocols.option_default(spec, opt), f"{spec.name}: {opt.help}")
+            if opt.name not in seen:  # an option two protocols share is one parameter
+                seen.add(opt.name)
+                p(opt.name, protocols.option_default(spec, opt), f"{spec.name}: {opt.help}")
     p("mute_negotiation_from", -1, "fault injection: no negotiation moves from this step on (-1: never)", -1)
     p("ci", 1, "coordination trigger: coordinate after every ci-th found object", 1)
     p("interval", 0, "coordination trigger: coordinate every interval steps (0: off)", 0)

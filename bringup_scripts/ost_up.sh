@@ -27,6 +27,7 @@ protocol:
   --protocol NAME            a registered protocol (ost protocols list; default ccp)
   --ci K | --interval T      coordination trigger (default --ci 1)
   --coordination distributed|coordinator
+  --planner paper|improved   CCP: Algorithm Coordination as published, or the improved planner
   --no-skip                  no event skipping: every step is a round trip
   --max-steps S              step limit (default: the simulator's)
 ROS:
@@ -61,7 +62,7 @@ say() { echo "$me: $*" >&2; }
 
 agents="" objects="" seed="" scenario="" protocol="ccp" ci="1" interval="" width="" height="" nmax=""
 mute="" respawn=0 hosts=0 loss=0 discovery="multicast" kills=() failure_timeout=1.0 partition=equal coordination=distributed
-record="" foxglove=0 insecure=0
+record="" foxglove=0 insecure=0 planner=paper
 domain="${ROS_DOMAIN_ID:-}" run_dir="" json=0 skip=true max_steps=0 timeout=0 background=0 stay=0 ns="ost"
 need() { [ $# -ge 2 ] && [ -n "$2" ] || die "$1 needs a value"; }
 int() { [[ "$2" =~ ^[0-9]+$ ]] || die "$1: expected a non-negative integer, got '$2'"; }
@@ -86,6 +87,8 @@ while [ $# -gt 0 ]; do
     --respawn-world) need "$@"; int "$1" "$2"; respawn="$2"; shift 2 ;;
     --coordination) need "$@"; case "$2" in distributed|coordinator) ;; *)
         die "--coordination: '$2' is not distributed or coordinator" ;; esac; coordination="$2"; shift 2 ;;
+    --planner) need "$@"; case "$2" in paper|improved) ;; *)
+        die "--planner: '$2' is not paper or improved" ;; esac; planner="$2"; shift 2 ;;
     --partition) need "$@"; case "$2" in equal|negotiated) ;; *)
         die "--partition: '$2' is not equal or negotiated" ;; esac; partition="$2"; shift 2 ;;
     --kill-agent) need "$@"; [[ "$2" =~ ^[0-9]+:[0-9]+$ ]] \
@@ -152,7 +155,7 @@ if [ "$background" = 1 ]; then
   for a in "$@"; do args+=("$a"); done
   # Re-run this script in the background with the same options, supervising the run.
   fwd=(--run-dir "$run_dir" --protocol "$protocol" --ci "$ci" --max-steps "$max_steps" --timeout "$timeout"
-       --namespace "$ns" --stay)
+       --namespace "$ns" --planner "$planner" --stay)
   [ -n "$agents" ] && fwd+=(--agents "$agents")
   [ -n "$scenario" ] && fwd+=(--scenario "$scenario")
   [ -n "$objects" ] && fwd+=(--objects "$objects" --seed "$seed")
@@ -287,6 +290,7 @@ cat > "$run_dir/params.yaml" <<EOF
     ci: $ci
     interval: ${interval:-0}
     coordination: "$coordination"
+    planner: "$planner"
     failure_timeout: $failure_timeout
     observers: $observers
 $auth_params

@@ -17,6 +17,7 @@ from ost_ros.coordination import ORGANISATIONS, CoordinationPolicy, coordinate
 from ost_ros.engines import ENGINES, StepHook, check_failures, choose_engine, simulate
 from ost_ros.errors import UsageError
 from ost_ros.model import DEFAULT_HEIGHT, DEFAULT_NMAX, DEFAULT_WIDTH, Grid, ObjectSpec, Scenario
+from ost_ros.planner import PLANNERS, improve
 from ost_ros.scenario import ScenarioError, build_scenario, dump_scenario, generate_scenario
 from ost_ros.validate import FieldError
 from ost_ros.world import World
@@ -59,12 +60,19 @@ def register(sub) -> None:
         cmd_schedule,
         help="run only the Coordination algorithm",
         description="Run Algorithm Coordination on a state file "
-        '{"agents":[{"id","cost","location"}],'
+        '{"agents":[{"id","cost","location"[,"base"]}],'
         '"objects":[{"id","location","destination","required"}]} '
         "and print the schedule in scheduling order.",
     )
     p.add_argument("state", help="state file (JSON; '-' for standard input)")
     p.add_argument("--json", action="store_true", help="print JSON")
+    p.add_argument(
+        "--planner",
+        choices=PLANNERS,
+        default="paper",
+        help="paper: Algorithm Coordination; improved: its schedule improved by a bounded local "
+        "search on the makespan with every agent home (at its base; default: where it stands)",
+    )
 
 
 # ----------------------------------------------------------------------------- generate
@@ -179,8 +187,12 @@ def add_sim_parser(sub) -> None:
 
 def add_protocol_options(p: argparse.ArgumentParser) -> None:
     """Every protocol's own options (the registry's), as flags."""
+    seen: set[str] = set()
     for spec in protocols.REGISTRY.values():
         for opt in spec.options:
+            if opt.name in seen:  # an option two protocols share (same settings field): once
+                continue
+            seen.add(opt.name)
             default = protocols.option_default(spec, opt)
             p.add_argument(
                 opt.flag,
@@ -411,23 +423,28 @@ def write_animation(args: argparse.Namespace, scenario: Scenario, result: Any, r
 # ----------------------------------------------------------------------------- schedule
 
 
-def parse_state(data: Any) -> tuple[list[int], list[int], list[tuple[int, int]], list[ObjectSpec]]:
-    """Validate a coordination state document; returns ids, costs, locations (sorted by id), objects."""
+def parse_state(
+    data: Any,
+) -> tuple[list[int], list[int], list[tuple[int, int]], list[tuple[int, int]], list[ObjectSpec]]:
+    """Validate a coordination state document; returns ids, costs, locations, bases (sorted by
+    id; a missing base is the agent's location), objects."""
     data = v.mapping(data, "state", ("agents", "objects"), ("agents", "objects"))
     agents = []
     for k, a in enumerate(v.listing(data["agents"], "agents")):
-        a = v.mapping(a, f"agents[{k}]", ("id", "cost", "location"), ("id", "cost", "location"))
+        a = v.mapping(a, f"agents[{k}]", ("id", "cost", "location", "base"), ("id", "cost", "location"))
+        at = v.cell(a["location"], f"agents[{k}].location")
         agents.append(
             (
                 v.integer(a["id"], f"agents[{k}].id", 0),
                 v.integer(a["cost"], f"agents[{k}].cost", 0),
-                v.cell(a["location"], f"agents[{k}].location"),
+                at,
+                v.cell(a["base"], f"agents[{k}].base") if "base" in a else at,
             )
         )
     if not agents:
         raise FieldError("agents: the team needs at least one agent")
     agents.sort()
-    for (x, _, _), (y, _, _) in zip(agents, agents[1:]):
+    for (x, *_), (y, *_) in zip(agents, agents[1:]):
         if x == y:
             raise FieldError(f"agents: duplicate id {x}")
     objects, seen = [], set()
@@ -446,7 +463,13 @@ def parse_state(data: Any) -> tuple[list[int], list[int], list[tuple[int, int]],
             raise FieldError(f"{where}.required: {obj.required} exceeds the team of {len(agents)} agents")
         seen.add(obj.id)
         objects.append(obj)
-    return [a[0] for a in agents], [a[1] for a in agents], [a[2] for a in agents], objects
+    return (
+        [a[0] for a in agents],
+        [a[1] for a in agents],
+        [a[2] for a in agents],
+        [a[3] for a in agents],
+        objects,
+    )
 
 
 def cmd_schedule(args: argparse.Namespace) -> int:
@@ -461,10 +484,13 @@ def cmd_schedule(args: argparse.Namespace) -> int:
     except json.JSONDecodeError as exc:
         raise UsageError(f"{args.state}: invalid JSON at line {exc.lineno}: {exc.msg}") from None
     try:
-        ids, cost, loc, objects = parse_state(data)
+        ids, cost, loc, bases, objects = parse_state(data)
     except FieldError as exc:
         raise UsageError(str(exc)) from None
-    result = coordinate(ids, cost, loc, objects)
+    if args.planner == "improved":
+        result = improve(ids, cost, loc, objects, bases)
+    else:
+        result = coordinate(ids, cost, loc, objects)
     out = {
         "schedule": [
             {"object": a.object, "agents": list(a.agents), "start": a.start, "finish": a.finish}

@@ -190,13 +190,13 @@ class CcpComm(QueuedMessages):
             return improve(*args, [self.team.bases[k] for k in idx], per, hint=hint or ())
         return coordinate(*args, per)
 
-    def _reopen(self, t: int) -> list[int]:
-        """Improved planner: take what no member has taken up by step t+1 back out of the
-        schedule (its objects, in the order they were planned)."""
+    def _reopen(self, s: int) -> list[int]:
+        """Improved planner: take what no member has taken up by step ``s`` (the first the new
+        plan applies to) back out of the schedule: its objects, in the order they were planned."""
         k = self.knowledge
         if self.planner != "improved":
             return []
-        reopened = k.reopen(k.open_entries(t + 1))
+        reopened = k.reopen(k.open_entries(s))
         if reopened:
             self.replanned = True
         return reopened
@@ -214,7 +214,7 @@ class CcpComm(QueuedMessages):
             self._hand_to_coordinator(t, final)
             return
         self.state = CommState.COORDINATING
-        reopened = self._reopen(t)
+        reopened = self._reopen(t + 1)
         result = self._schedule_batch(t, reopened + sorted(k.unscheduled), reopened)
         k.assign(result.schedule)
         k.unscheduled.clear()
@@ -236,13 +236,14 @@ class CcpComm(QueuedMessages):
         """Everyone sets the batch aside; the coordinator schedules it for steps from t+2 on
         (its update is read in step t+1) and queues the update."""
         k = self.knowledge
-        batch = sorted(k.unscheduled)
+        reopened = self._reopen(t + 2)
+        batch = reopened + sorted(k.unscheduled)
         k.unscheduled.clear()
         self.awaiting.update(batch)
         self.closing = self.closing or final
         if self.me != self.coordinator:
             return
-        result = self._schedule_batch(t + 1, batch)
+        result = self._schedule_batch(t + 1, batch, reopened)
         entries = tuple(ScheduledObject(a.object, a.agents, a.start, a.finish) for a in result.schedule)
         self._outbox.append(ScheduleUpdate(self.me, t, k.coordinations + 1, entries, final))
 

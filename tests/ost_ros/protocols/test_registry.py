@@ -79,7 +79,10 @@ def test_capabilities_are_checked(name, what, text):
 
 
 def test_settings_from_options():
-    assert protocols.settings_from("ccp", {"ncp_delta": 0.5}) is None  # not its option
+    assert protocols.settings_from("ccp", {"ncp_delta": 0.5}).planner == "paper"  # not its option
+    assert protocols.settings_from("ccp", {"planner": "improved"}).planner == "improved"
+    with pytest.raises(protocols.ProtocolError, match="--planner: planner must be one of paper, improved"):
+        protocols.settings_from("ccp", {"planner": "best"})
     assert protocols.settings_from("ncp", {"ncp_delta": 0.5}).delta == 0.5
     with pytest.raises(protocols.ProtocolError, match="--ncp-timeout: NCP time-out"):
         protocols.settings_from("ncp", {"ncp_timeout": 0})
