@@ -11,7 +11,8 @@ Two families:
   and the help-based protocol's :class:`HelpRequest`, :class:`HelpOffer`, :class:`HelpAccept`,
   :class:`HelpRelease`, the negotiation protocol's :class:`NegotiationOffer`, and for recovery
   from a failed robot :class:`Status` (and the world's notice :class:`AgentLost`), and the
-  coordinator organisation's :class:`ScheduleUpdate`;
+  coordinator organisation's :class:`ScheduleUpdate`, and the auction's :class:`Bid` and
+  :class:`Award`;
 - agent ↔ world (sensing and acting): :class:`Observation`, :class:`Action`.
 """
 
@@ -178,6 +179,33 @@ class ScheduleUpdate:
     version: int = SCHEMA_VERSION
 
 
+@dataclass(frozen=True)
+class Bid:
+    """Auction: the sender's bid for ``object`` — the step it could be there (when it is free of
+    its search and of the objects it has won, plus the walk). Every agent bids on every object
+    announced; the object's auctioneer awards it."""
+
+    TYPE: ClassVar[str] = "bid"
+    sender: int
+    t: int
+    object: int
+    cost: int
+    version: int = SCHEMA_VERSION
+
+
+@dataclass(frozen=True)
+class Award:
+    """Auction: the auctioneer's decision for ``object`` — its n_i lowest bidders (ties: lower
+    id), ascending. Winners execute their objects in the order the awards arrive."""
+
+    TYPE: ClassVar[str] = "award"
+    sender: int
+    t: int
+    object: int
+    agents: tuple[int, ...]
+    version: int = SCHEMA_VERSION
+
+
 WORLD = -1  # sender of the world's notices
 
 
@@ -271,6 +299,8 @@ AGENT_MESSAGES: tuple[type[Any], ...] = (
     Status,
     AgentLost,
     ScheduleUpdate,
+    Bid,
+    Award,
 )
 WORLD_MESSAGES: tuple[type[Any], ...] = (Observation, Action)
 ALL_MESSAGES: dict[str, type[Any]] = {cls.TYPE: cls for cls in AGENT_MESSAGES + WORLD_MESSAGES}
@@ -288,4 +318,6 @@ AgentMessage = (
     | Status
     | AgentLost
     | ScheduleUpdate
+    | Bid
+    | Award
 )

@@ -14,11 +14,13 @@ from typing import Any
 
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Scenario
-from ost_ros.protocols import ccp, hcp, ncp
+from ost_ros.protocols import auction, ccp, hcp, ncp
 from ost_ros.protocols.base import Capabilities, Option, ProtocolAgent, ProtocolError, ProtocolSpec
 from ost_ros.team import TeamInfo
 
-REGISTRY: dict[str, ProtocolSpec] = {spec.name: spec for spec in (ccp.SPEC, hcp.SPEC, ncp.SPEC)}
+REGISTRY: dict[str, ProtocolSpec] = {
+    spec.name: spec for spec in (ccp.SPEC, hcp.SPEC, ncp.SPEC, auction.SPEC)
+}
 
 __all__ = [
     "REGISTRY",
@@ -73,10 +75,6 @@ def check(
     if failures and not caps.recovers_failures:
         raise ProtocolError(
             f"protocol {name} does not recover from failures ({_able('recovers_failures')} do)"
-        )
-    if failures and policy is not None and policy.centralised:
-        raise ProtocolError(
-            "the coordinator organisation does not recover from failures (the distributed one does)"
         )
     if silence and spec.silence is None:
         raise ProtocolError(f"a silenced negotiator: protocol {name} does not negotiate")

@@ -104,7 +104,9 @@ class CcpComm(QueuedMessages):
             return
         if self.all_searched:
             self._coordinate(t, final=True)
-            if not self.closing:
+            if self.awaiting:  # a coordinator's update still to come (a re-plan): it closes
+                self.closing = True
+            elif not self.closing:
                 self.state = CommState.CLOSED
                 k.predicted_makespan = k.predict_makespan(t, self.alive)
         elif self.policy.due(
@@ -265,7 +267,7 @@ class CcpComm(QueuedMessages):
         k.assign([Assignment(e.object, tuple(e.agents), e.start, e.finish) for e in msg.assignments])
         self.awaiting.difference_update(e.object for e in msg.assignments)
         k.coordinations += 1
-        if msg.final:
+        if msg.final or (self.closing and not self.awaiting):
             self.closing = False
             self.state = CommState.CLOSED
             k.predicted_makespan = k.predict_makespan(t, self.alive)
