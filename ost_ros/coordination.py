@@ -60,7 +60,7 @@ def _reach(
     return arrival_np(cost[None, :], dist, period[None, :])
 
 
-def _carry_times(m_p: int, carry: int, periods: Sequence[int] | np.ndarray) -> tuple[int, int]:
+def carry_times(m_p: int, carry: int, periods: Sequence[int] | np.ndarray) -> tuple[int, int]:
     """(start, finish) of a carry whose group is complete at m_p: the group moves in the steps
     all its members can move in (unit speed: m_p, m_p + carry)."""
     k = group_period(periods)
@@ -121,7 +121,7 @@ def coordinate(
         p, m_p = int(cand[k]), int(m_i[k])
         # Step 3: the n_p cheapest agents (stable sort: ties to the lower agent id).
         group = np.sort(np.argsort(reach[p], kind="stable")[: need[p]])
-        start, finish = _carry_times(m_p, int(carry[p]), () if per is None else per[group])
+        start, finish = carry_times(m_p, int(carry[p]), () if per is None else per[group])
         ca[group] = finish
         at[group] = dest[p]
         schedule.append(Assignment(int(obj_ids[p]), tuple(int(a) for a in ids[group]), start, finish))
@@ -178,7 +178,7 @@ def order_groups(
         p = int(np.argmin(m_i))  # first minimum: the lower object id
         m_p = int(m_i[p])
         group = np.flatnonzero(member[p])
-        start, finish = _carry_times(m_p, int(carry[p]), () if per is None else per[group])
+        start, finish = carry_times(m_p, int(carry[p]), () if per is None else per[group])
         ca[group] = finish
         at[group] = dest[p]
         schedule.append(Assignment(int(obj_ids[p]), tuple(int(a) for a in ids[group]), start, finish))

@@ -1,5 +1,6 @@
-"""Fault study (``ost faults report``): robot failures run in-process (CCP and HCP) against the
-fault-free run of the same scenario — objects delivered, makespan, overhead.
+"""Fault study (``ost faults report``): robot failures run in-process (every protocol, and CCP's
+coordinator organisation) against the fault-free run of the same scenario — objects delivered,
+makespan, overhead.
 
 A fault is a set of robots failing at a share of the fault-free makespan (the robots are picked
 by a seeded draw). The DDS rows (``--dds``: a real SIGKILL, a lossy network) are added by the
@@ -101,6 +102,17 @@ def recovering() -> tuple[str, ...]:
     return tuple(n for n, s in protocols.REGISTRY.items() if s.capabilities.recovers_failures)
 
 
+def variants(names: tuple[str, ...] | None = None) -> list[tuple[str, CoordinationPolicy]]:
+    """Every recovering protocol (CI = 1), then the other organisations those can run."""
+    chosen = names or recovering()
+    out = [(name, CoordinationPolicy(ci=1)) for name in chosen]
+    for name in chosen:
+        for organisation in protocols.get(name).capabilities.organisations:
+            if organisation != "distributed":
+                out.append((name, CoordinationPolicy(ci=1, organisation=organisation)))
+    return out
+
+
 def in_process_rows(
     quick: bool = False,
     seed: int = 1,
@@ -108,14 +120,13 @@ def in_process_rows(
     names: tuple[str, ...] | None = None,
 ) -> list[FaultRow]:
     rows: list[FaultRow] = []
-    policy = CoordinationPolicy(ci=1)
     runs = [
-        (label, scenario, protocol)
+        (label, scenario, protocol, policy)
         for label, scenario in study_scenarios(quick)
-        for protocol in (names or recovering())
+        for protocol, policy in variants(names)
     ]
-    for label, scenario, protocol in runs:
-        name = f"{protocol.upper()}: {label}"
+    for label, scenario, protocol, policy in runs:
+        name = f"{protocol.upper()}{'' if not policy.centralised else ' (coordinator)'}: {label}"
         base = simulate(scenario, protocol, policy, engine="auto")
         rows.append(row_of(name, "none", base, base.makespan))
         assert base.makespan is not None, base.error

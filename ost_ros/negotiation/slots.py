@@ -136,7 +136,10 @@ class SlotNegotiation:
     _prot: np.ndarray | None = None  # protected() of the current round, once computed
 
     @classmethod
-    def open(cls, number: int, objects: list, reach: np.ndarray) -> SlotNegotiation:
+    def open(
+        cls, number: int, objects: list, reach: np.ndarray, alive: np.ndarray | None = None
+    ) -> SlotNegotiation:
+        """Negotiation ``number`` of ``objects`` among the agents of ``alive`` (default: all)."""
         n, b = reach.shape[1], len(objects)
         return cls(
             number,
@@ -151,7 +154,7 @@ class SlotNegotiation:
                 dtype=np.int64,
             ),
             np.ones((n, b), dtype=bool),
-            np.ones(n, dtype=bool),
+            np.ones(n, dtype=bool) if alive is None else alive.copy(),
             np.zeros(n, dtype=bool),
             np.zeros(n, dtype=np.int64),
         )

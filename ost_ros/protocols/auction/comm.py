@@ -3,9 +3,10 @@
 Each found object is auctioned by its finder (the lowest id among the agents that report it in
 the step it is first reported):
 
-1. step t: the finder's :class:`ObjectFound` opens the auction; every agent takes it in and
-   queues its :class:`Bid` — the step it could be at the object (free of its search and of
-   everything it has won, then the walk);
+1. step t: the finder's :class:`ObjectFound` opens the auction (one auction at a time: objects
+   found meanwhile wait, lowest id first); every agent takes it in and queues its
+   :class:`Bid` — the step it could be at the object (free of its search and of everything it
+   has won, then the walk);
 2. step t+1: every bid arrives; the auctioneer picks the object's n_i lowest bids (ties: lower
    id) and queues the :class:`Award`;
 3. step t+2: the award arrives; every agent appends the object with that group to the schedule,
@@ -25,7 +26,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from ost_msgs_py.messages import AgentMessage, Award, Bid, ObjectFound
-from ost_ros.coordination import order_groups
+from ost_ros.coordination import Assignment, carry_times
 from ost_ros.model import arrival, manhattan
 from ost_ros.protocols.ccp.comm import CcpComm, CommState
 
@@ -89,10 +90,13 @@ class AuctionComm(CcpComm):
     # ------------------------------------------------------------------ the auction
 
     def _coordinate(self, t: int, final: bool = False) -> None:
-        """Open an auction for every object in the pool (object id order) and bid on each."""
+        """Open the auction of the first object in the pool (lowest id) and bid on it — one
+        auction at a time, so every bid counts what its bidder has won before."""
         k = self.knowledge
         survivors = self.alive
         for i in sorted(k.unscheduled):
+            if self.auctions:
+                return
             k.unscheduled.discard(i)
             if k.objects[i].required > len(survivors):
                 self.impossible.add(i)  # fewer robots survive than it needs
@@ -118,7 +122,7 @@ class AuctionComm(CcpComm):
 
     def _bid(self, msg: Bid) -> None:
         auction = self.auctions.get(msg.object)
-        if auction is None or msg.sender not in self.alive:
+        if auction is None or msg.sender not in self.team.agent_ids or msg.sender in self.lost:
             self.knowledge.warnings.append(
                 f"agent {msg.sender}: bid for object {msg.object}, which is not being auctioned; ignored"
             )
@@ -152,18 +156,16 @@ class AuctionComm(CcpComm):
             )
             return
         del self.auctions[msg.object]
+        # when the last member can be there (order_groups' timing, for one object)
         cost, loc = k.costs(t)
-        idx = [self.team.index(j) for j in self.alive]
-        periods = self.team.speed_periods
-        result = order_groups(
-            self.alive,
-            cost[idx],
-            loc[idx],
-            [o],
-            {o.id: tuple(msg.agents)},
-            None if periods is None else [periods[i] for i in idx],
+        members = [self.team.index(j) for j in msg.agents]
+        periods = [self.team.periods[i] if self.team.periods else 1 for i in members]
+        m_p = max(
+            arrival(int(cost[i]), manhattan((int(loc[i][0]), int(loc[i][1])), o.location), p)
+            for i, p in zip(members, periods)
         )
-        k.assign(result.schedule)
+        start, finish = carry_times(m_p, manhattan(o.location, o.destination), periods)
+        k.assign([Assignment(o.id, tuple(sorted(msg.agents)), start, finish)])
         self.awarded += 1
 
     # ------------------------------------------------------------------ failures

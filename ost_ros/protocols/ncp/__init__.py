@@ -41,7 +41,9 @@ SPEC = ProtocolSpec(
     make_agent=make_agent,
     messages=(ObjectFound, SearchDone, NegotiationOffer),
     states=STATES,
-    capabilities=Capabilities(own_sweeps=True, heterogeneous=True, triggers=True, team_knowledge=True),
+    capabilities=Capabilities(
+        recovers_failures=True, own_sweeps=True, heterogeneous=True, triggers=True, team_knowledge=True
+    ),
     settings=NegotiationSettings,
     options=(
         Option("ncp_delta", "delta", "claim discount per negotiation round, in (0, 1)"),

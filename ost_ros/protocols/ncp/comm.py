@@ -11,6 +11,10 @@ one (opened at once if a trigger is due).
 
 Comm FSA: LISTENING —(coordination point)→ NEGOTIATING —(everyone left)→ LISTENING;
 LISTENING —(every agent searched, nothing unscheduled, no negotiation under way)→ CLOSED.
+Any state —(the world's AgentLost)→ RECOVERING —(every survivor's Status)→ LISTENING: a
+negotiation under way is called off, what the dead robot held or had claimed and everything not
+under way goes back into the pool and is negotiated again among the survivors
+(:mod:`ost_ros.protocols.shared.failures`).
 """
 
 from __future__ import annotations
@@ -21,10 +25,19 @@ from enum import Enum
 
 import numpy as np
 
-from ost_msgs_py.messages import AgentMessage, NegotiationOffer, ObjectFound, SearchDone, Selection, Status
-from ost_ros.coordination import Assignment, CoordinationPolicy, order_groups
-from ost_ros.model import Cell, arrival_np
+from ost_msgs_py.messages import (
+    AgentLost,
+    AgentMessage,
+    NegotiationOffer,
+    ObjectFound,
+    SearchDone,
+    Selection,
+    Status,
+)
+from ost_ros.coordination import CoordinationPolicy, order_groups
+from ost_ros.model import arrival_np
 from ost_ros.negotiation.slots import NegotiationSettings, SlotNegotiation
+from ost_ros.protocols.shared.failures import Recovery
 from ost_ros.protocols.shared.knowledge import Knowledge, QueuedMessages
 from ost_ros.team import TeamInfo
 
@@ -32,11 +45,12 @@ from ost_ros.team import TeamInfo
 class NcpState(str, Enum):
     LISTENING = "LISTENING"
     NEGOTIATING = "NEGOTIATING"  # a negotiation is under way
+    RECOVERING = "RECOVERING"  # a robot failed: waiting for every survivor's Status
     CLOSED = "CLOSED"
 
 
 @dataclass
-class NcpComm(QueuedMessages):
+class NcpComm(Recovery, QueuedMessages):
     """Shared knowledge plus the slot negotiation. ``voices``: the agents whose moves this module
     sends — itself, or everyone when one module computes the whole run (every module holds the
     same public state, so the moves are the same)."""
@@ -52,14 +66,12 @@ class NcpComm(QueuedMessages):
     negotiations: int = 0
     moves_sent: int = 0
     _outbox: list[AgentMessage] = field(default_factory=list)
-    # NCP does not recover from failures (the registry refuses them): nothing to recover or reset.
-    recovering: int | None = None
-    reset: bool = False
-    replanned: bool = False
+    replanned: bool = False  # (CCP's improved planner only)
 
     def __post_init__(self) -> None:
         self.knowledge = Knowledge(self.me, self.team)
         self.voices = self.voices or (self.me,)
+        self._init_recovery()
 
     def receive(self, t: int, messages: Sequence[AgentMessage]) -> None:
         k = self.knowledge
@@ -68,18 +80,25 @@ class NcpComm(QueuedMessages):
             if isinstance(msg, ObjectFound):
                 k.note_found(msg.object, msg.t)
             elif isinstance(msg, SearchDone):
-                if msg.sender in self.team.agent_ids:
-                    k.searched.add(msg.sender)
+                self._search_done(msg)
             elif isinstance(msg, NegotiationOffer):
                 self._take_move(msg, moves)
             elif isinstance(msg, Selection):
                 k.warnings.append(f"agent {msg.sender}: a CCP selection in an NCP run; ignored")
+            elif isinstance(msg, Status):
+                self._status(msg)
+            elif isinstance(msg, AgentLost):
+                self._lose(msg.agent, msg.t)
+        if self.recovering is not None:
+            if self.recovering == t:
+                return  # statuses come next step
+            self._recover(t)
         if self.state is NcpState.CLOSED:
             return
         if self.negotiation is not None:
             self._negotiate(t, moves)
         if self.negotiation is None:
-            all_searched = len(k.searched) == self.team.size
+            all_searched = self.all_searched
             if k.unscheduled and (
                 all_searched
                 or self.policy.due(
@@ -89,16 +108,16 @@ class NcpComm(QueuedMessages):
                 self._open(t)
             elif all_searched and not k.unscheduled:
                 self.state = NcpState.CLOSED
-                k.predicted_makespan = k.predict_makespan(t, self.team.agent_ids)
+                k.predicted_makespan = k.predict_makespan(t, self.alive)
 
     def next_event(self, t: int) -> int | None:
         """The first step s >= t in which :meth:`receive` acts with no message (None: never)."""
         k = self.knowledge
-        if self.negotiation is not None:
-            return t  # a round every step
+        if self.negotiation is not None or self.recovering is not None:
+            return t  # a round every step; a recovery
         if self.state is NcpState.CLOSED:
             return None
-        if len(k.searched) == self.team.size:
+        if self.all_searched:
             return t
         return self.policy.next_due(t, len(k.unscheduled), self.team)
 
@@ -122,6 +141,12 @@ class NcpComm(QueuedMessages):
     def _open(self, t: int) -> None:
         """A coordination point: negotiate every found, unscheduled object."""
         k = self.knowledge
+        survivors = self.alive
+        for i in [i for i in k.unscheduled if k.objects[i].required > len(survivors)]:
+            k.unscheduled.discard(i)  # fewer robots survive than it needs
+            self.impossible.add(i)
+        if not k.unscheduled:
+            return
         self.state = NcpState.NEGOTIATING
         cost, loc = k.costs(t)
         batch = [k.objects[i] for i in sorted(k.unscheduled)]
@@ -133,7 +158,8 @@ class NcpComm(QueuedMessages):
             self.team.period_array()[None, :],
         )
         self.negotiations += 1
-        self.negotiation = SlotNegotiation.open(self.negotiations, batch, reach)
+        alive = np.array([j not in self.lost for j in self.team.agent_ids], dtype=bool)
+        self.negotiation = SlotNegotiation.open(self.negotiations, batch, reach, alive)
         self._send_move(t)
 
     def _negotiate(self, t: int, moves: dict[int, NegotiationOffer]) -> None:
@@ -174,5 +200,15 @@ class NcpComm(QueuedMessages):
     def closed(self) -> bool:
         return self.state is NcpState.CLOSED
 
-    def status(self, t: int, at: Cell, current: Assignment | None) -> Status:
-        raise NotImplementedError("NCP does not recover from failures")
+    # ------------------------------------------------------------------ failures
+
+    def _cancel_pending(self, t: int) -> None:
+        """A negotiation under way when a robot failed is called off: its objects go back into
+        the pool and are negotiated again among the survivors once their statuses are in."""
+        if self.negotiation is not None:
+            self.knowledge.unscheduled.update(self.negotiation.objects)
+            self.negotiation = None
+        self.state = NcpState.RECOVERING
+
+    def _after_recovery(self, t: int) -> None:
+        self.state = NcpState.LISTENING

@@ -291,6 +291,7 @@ class ScheduleAgent:
 
 
 _GROUP = frozenset((GlobalState.HELPING, GlobalState.WAITING, GlobalState.MOVING))
+PLAN_HORIZON = 1024  # steps a quiet plan covers at least (when the schedule goes that far)
 
 
 class _Planner:
@@ -328,7 +329,10 @@ class _Planner:
 
     def run(self) -> Plan:
         go = True
-        while go and (self.end is None or self.s < self.end):
+        start = self.s
+        # Past PLAN_HORIZON steps nobody reads the plan (the event engine takes its first
+        # segment, the DDS runtime at most its lookahead): stop there at a segment's end.
+        while go and (self.end is None or self.s < self.end) and self.s - start < PLAN_HORIZON:
             go = self.step()
         return Plan(tuple(self.out), settled=bool(self.out) and not self.handed_over)
 

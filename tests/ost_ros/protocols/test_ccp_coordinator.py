@@ -47,8 +47,6 @@ def test_refused_combinations():
     policy = CoordinationPolicy(organisation="coordinator")
     with pytest.raises(ValueError, match="for ccp"):
         simulate(s, "ncp", policy)
-    with pytest.raises(ValueError, match="does not recover"):
-        simulate(s, "ccp", policy, failures={1: 3})
     with pytest.raises(ValueError, match="step engine"):
         simulate(s, "ccp", policy, engine="event")
     with pytest.raises(ValueError, match="organisation must be"):

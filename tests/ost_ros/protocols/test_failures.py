@@ -88,8 +88,6 @@ def test_bad_failures_are_refused():
         simulate(s, failures={9: 3})
     with pytest.raises(ValueError, match="non-negative"):
         simulate(s, failures={0: -1})
-    with pytest.raises(ValueError, match="ncp does not recover"):
-        simulate(s, "ncp", failures={0: 3})
     with pytest.raises(ValueError, match="step engine"):
         simulate(s, failures={0: 3}, engine="event")
 

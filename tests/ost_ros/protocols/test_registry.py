@@ -26,7 +26,7 @@ INTERFACE = [m for m in dir(ProtocolAgent) if not m.startswith("_")]
 
 
 def test_names_and_specs():
-    assert protocols.names() == ("ccp", "hcp", "ncp")
+    assert protocols.names() == ("ccp", "hcp", "ncp", "auction")
     for name, spec in protocols.REGISTRY.items():
         assert spec.name == name and spec.title and spec.states and spec.messages
         assert "SEARCHING" in spec.states and "FINISH" in spec.states  # the world reads these
@@ -42,18 +42,18 @@ def test_every_agent_has_the_whole_interface(name):
 
 def test_unknown_name_is_one_clear_error_everywhere(tmp_path):
     with pytest.raises(
-        protocols.ProtocolError, match=r"unknown protocol 'auction' \(choose from ccp, hcp, ncp\)"
+        protocols.ProtocolError, match=r"unknown protocol 'lottery' \(choose from ccp, hcp, ncp, auction\)"
     ):
-        protocols.get("auction")
+        protocols.get("lottery")
     s = generate_scenario(2, 2, 1, Grid(12, 6), 2)
-    with pytest.raises(ValueError, match="unknown protocol 'auction'"):
-        simulate(s, "auction")
+    with pytest.raises(ValueError, match="unknown protocol 'lottery'"):
+        simulate(s, "lottery")
     path = tmp_path / "s.yaml"
     path.write_text(dump_scenario(s))
-    for argv in (["sim", str(path), "--protocol", "auction"], ["protocols", "check", "auction"]):
+    for argv in (["sim", str(path), "--protocol", "lottery"], ["protocols", "check", "lottery"]):
         r = subprocess.run([sys.executable, "-m", "ost_ros", *argv], capture_output=True, text=True)
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
-        assert "auction" in r.stderr and "Traceback" not in r.stderr
+        assert "lottery" in r.stderr and "Traceback" not in r.stderr
 
 
 @pytest.mark.parametrize(
@@ -63,12 +63,6 @@ def test_unknown_name_is_one_clear_error_everywhere(tmp_path):
             "hcp",
             dict(policy=CoordinationPolicy(organisation="coordinator")),
             "coordinator organisation is for ccp only",
-        ),
-        ("ncp", dict(failures=True), "ncp does not recover from failures (ccp and hcp do)"),
-        (
-            "ccp",
-            dict(failures=True, policy=CoordinationPolicy(organisation="coordinator")),
-            "coordinator organisation does not recover",
         ),
         ("hcp", dict(silence=True), "does not negotiate"),
     ],

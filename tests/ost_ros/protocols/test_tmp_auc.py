@@ -39,3 +39,16 @@ def test_coord_fail(run):
             assert o.delivered is not None and len(o.agents) == spec.required
     if r.predicted_makespan is not None:
         assert r.predicted_makespan == r.makespan
+
+@settings(max_examples=300, deadline=None)
+@given(run=failing_runs())
+def test_ncp_fail(run):
+    s, policy, failures = run
+    r = simulate(s, "ncp", policy, failures=failures)
+    survivors = s.n_agents - len(failures)
+    assert not r.rejections and not r.warnings and r.agreement, r.warnings
+    for o, spec in zip(r.objects, s.objects):
+        if spec.required <= survivors:
+            assert o.delivered is not None and len(o.agents) == spec.required
+    if r.predicted_makespan is not None:
+        assert r.predicted_makespan == r.makespan
