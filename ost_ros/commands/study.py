@@ -1,5 +1,5 @@
-"""Study verbs: ``ost optimal`` (Algorithm Optimal-OST, CCP's gap) and ``ost reproduce`` (the
-paper's whole simulation study)."""
+"""Study verbs: ``ost optimal`` (Algorithm Optimal-OST, CCP's gap), ``ost reproduce`` (the
+paper's whole simulation study) and ``ost compare`` (every protocol and planner side by side)."""
 
 from __future__ import annotations
 
@@ -72,6 +72,56 @@ def register(sub) -> None:
     )
 
 
+    p = leaf(
+        sub,
+        "compare",
+        cmd_compare,
+        help="every protocol and planner side by side",
+        description="Every protocol of the registry (HCP, the auction, CCP and NCP at CI=1 and "
+        "CI=M) and CCP's improved planner on the same scenarios of the study's grid: mean "
+        "makespan with 95 %% intervals, ratio to the lower bound, messages per object, CPU per "
+        "run; report.md, runs.csv, summary.csv and one figure per N.",
+    )
+    p.add_argument("--out", required=True, help="output directory (created if needed)")
+    p.add_argument(
+        "--quick", action="store_true", help="N in 10, 50 and M in 10, 50, 3 object sets (about a minute)"
+    )
+    p.add_argument("--sets", type=at_least(2), help="object sets per (N, M) (default 10; quick 3)")
+    p.add_argument(
+        "--jobs", type=at_least(1), default=os.cpu_count() or 1, help="worker processes (default: every core)"
+    )
+    p.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="progress bar on stderr (default: when stderr is a terminal)",
+    )
+
+
+def out_dir(text: str) -> Path:
+    """``--out``: a directory, created if needed (one-line usage errors otherwise)."""
+    out = Path(text)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {text}: exists and is not a directory")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"--out {text}: cannot create ({exc.strerror})") from None
+    return out
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from ost_ros.study.compare import grid, run_all, write_all
+
+    out = out_dir(args.out)
+    tasks = grid(args.quick, args.sets)
+    rows, wall = run_all(tasks, workers=args.jobs, progress=args.progress)
+    files = write_all(rows, wall, out)
+    print(f"{len(rows)} runs in {wall:.1f} s; wrote {', '.join(files)} to {out}", file=sys.stderr)
+    print((out / "report.md").read_text())
+    return 0
+
+
 def seed_range(text: str) -> tuple[int, ...]:
     """``A-B`` (inclusive) or ``A``: non-negative seeds, at most 20."""
     lo, sep, hi = text.partition("-")
@@ -141,13 +191,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     from ost_ros.study.report import write_all
     from ost_ros.study.runner import run_design
 
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"--out {args.out}: exists and is not a directory")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UsageError(f"--out {args.out}: cannot create ({exc.strerror})") from None
+    out = out_dir(args.out)
     design = Design.quick(args.seed) if args.quick else Design(seed=args.seed)
     from dataclasses import replace
 

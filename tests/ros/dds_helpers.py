@@ -223,12 +223,12 @@ def wait_subscribers(domain: int, topic: str, n: int, seconds: float = 60) -> No
     assert run.returncode == 0, f"{topic}: fewer than {n} subscribers after {seconds} s {run.stderr[-500:]}"
 
 
-def reference(scenario, protocol: str, policy) -> dict:
+def reference(scenario, protocol: str, policy, settings=None, failures=None) -> dict:
     """What ``ost sim --json`` prints for the scenario: the in-process result and its bound."""
     from ost_ros.bounds import lower_bound
     from ost_ros.engines import simulate
 
-    expected = simulate(scenario, protocol, policy).to_dict()
+    expected = simulate(scenario, protocol, policy, settings=settings, failures=failures).to_dict()
     expected["lower_bound"] = lower_bound(scenario).value
     return expected
 

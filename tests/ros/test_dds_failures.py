@@ -1,17 +1,20 @@
 """Robot failures over DDS: an agent process killed with SIGKILL mid-run (by itself at a given
 step, or from outside at an arbitrary moment) is detected by its lost liveliness, declared failed
 in the step the world was at, and the survivors re-coordinate — the result is exactly the
-in-process run with that failure (``ost sim --fail AGENT:STEP``), for CCP and HCP. Too few
-survivors, or a protocol that does not recover (ncp), end the run with a result that says why."""
+in-process run with that failure (``ost sim --fail AGENT:STEP``), for every protocol (CCP, HCP,
+NCP, the auction) and CCP's coordinator organisation. Too few survivors end the run with a result
+that says why."""
 
 import subprocess
+
+import pytest
 
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
-from tests.ros.dds_helpers import kill_mid_run, ost_up, result_json
+from tests.ros.dds_helpers import kill_mid_run, ost_up, reference, result_json
 
 
 def scenario_file(tmp_path, n=4, m=8, seed=1, grid=Grid(30, 12), nmax=3):
@@ -89,20 +92,30 @@ def test_hcp_recovers_from_a_failed_agent_as_in_process(tmp_path):
     assert got == in_process(scenario, got, "hcp")
 
 
-def test_ncp_run_with_a_failed_agent_ends_with_the_reason(tmp_path):
-    _, path = scenario_file(tmp_path)
+@pytest.mark.parametrize(
+    "protocol, extra, policy",
+    [
+        ("ncp", (), CoordinationPolicy(ci=1)),
+        ("auction", (), CoordinationPolicy(ci=1)),
+        ("ccp", ("--coordination", "coordinator"), CoordinationPolicy(ci=1, organisation="coordinator")),
+    ],
+)
+def test_every_protocol_recovers_from_a_killed_agent_as_in_process(tmp_path, protocol, extra, policy):
+    scenario, path = scenario_file(tmp_path)
     run = ost_up(
         "--scenario",
         str(path),
         "--json",
         "--protocol",
-        "ncp",
+        protocol,
+        *extra,
         "--kill-agent",
-        "3:10",
+        "0:10",  # the coordinator, a negotiator, an auctioneer
         "--run-dir",
         str(tmp_path / "run"),
     )
+    assert run.returncode == 0, run.stderr
     got = result_json(run.stdout)
-    assert not got["completed"]
-    assert "does not recover from failures" in got["error"]
-    assert got["failures"][0]["agent"] == 3
+    assert got["completed"] and got["agreement"] and got["failures"][0]["agent"] == 0
+    failures = {f["agent"]: f["step"] for f in got["failures"]}
+    assert got == reference(scenario, protocol, policy, failures=failures)

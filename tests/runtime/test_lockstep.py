@@ -185,7 +185,7 @@ def test_messages_of_another_run_are_dropped():
         world.accept_acted(dataclasses.replace(acted, run="x"))
 
 
-@pytest.mark.parametrize("protocol", ["ccp", "hcp"])
+@pytest.mark.parametrize("protocol", names())
 @pytest.mark.parametrize("skipping", [False, True])
 @pytest.mark.parametrize("kill", [{1: 0}, {2: 40}, {0: 25, 3: 60}, {5: 120}])
 def test_failed_agents_equal_simulate_with_the_same_failures(kill, skipping, protocol):
@@ -200,9 +200,16 @@ def test_failed_agents_equal_simulate_with_the_same_failures(kill, skipping, pro
     assert got.completed and got.agreement
 
 
-def test_a_failure_under_ncp_ends_the_run_with_the_reason():
+def test_a_failure_under_a_protocol_that_cannot_recover_ends_the_run_with_the_reason(monkeypatch):
+    from ost_ros import protocols
+
+    ncp = protocols.REGISTRY["ncp"]
+    fragile = dataclasses.replace(
+        ncp, name="fragile", capabilities=dataclasses.replace(ncp.capabilities, recovers_failures=False)
+    )
+    monkeypatch.setitem(protocols.REGISTRY, "fragile", fragile)
     scenario = generate_scenario(4, 6, 1, Grid(30, 12), 3)
-    world = WorldRuntime(scenario, protocol="ncp")
+    world = WorldRuntime(scenario, protocol="fragile")
     world.start()
     end = world.fail(2)
     assert isinstance(end, RunEnd) and not end.completed

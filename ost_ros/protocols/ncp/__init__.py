@@ -4,7 +4,7 @@ are executed like a CCP schedule. Not in either paper: the two papers combined."
 
 from __future__ import annotations
 
-from ost_msgs_py.messages import NegotiationOffer, ObjectFound, SearchDone
+from ost_msgs_py.messages import NegotiationOffer, ObjectFound, SearchDone, Status
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.negotiation.slots import NegotiationSettings
 from ost_ros.protocols.base import Capabilities, Option, ProtocolSpec
@@ -39,7 +39,7 @@ SPEC = ProtocolSpec(
     label="negotiated allocation",
     title="negotiated: objects allocated by a slot negotiation (Rossi et al.), executed like CCP",
     make_agent=make_agent,
-    messages=(ObjectFound, SearchDone, NegotiationOffer),
+    messages=(ObjectFound, SearchDone, NegotiationOffer, Status),
     states=STATES,
     capabilities=Capabilities(
         recovers_failures=True, own_sweeps=True, heterogeneous=True, triggers=True, team_knowledge=True
