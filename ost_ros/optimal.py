@@ -85,7 +85,9 @@ def optimal_schedule(
     improved_cost = makespan_of(
         [int(c) for c in better.cost], [(int(p[0]), int(p[1])) for p in better.loc], homes
     )
-    start_cost, start_plan = min((ccp_cost, ccp.schedule), (improved_cost, better.schedule), key=lambda c: c[0])
+    start_cost, start_plan = min(
+        (ccp_cost, ccp.schedule), (improved_cost, better.schedule), key=lambda c: c[0]
+    )
     search = _BranchAndBound(list(agent_ids), homes, objs, max_nodes, start_cost, list(start_plan))
     left = list(range(len(objs)))
     if objs and search.bound(ca, where, left) < search.best_cost:

@@ -29,7 +29,7 @@ from ost_ros.model import Cell, ObjectSpec, arrival, arrival_np, group_period
 PLANNERS = ("paper", "improved")
 # Agent reaches one coordination's local search may compute at most (a placement computes one
 # per agent): M = 200, N = 50 then takes ~0.2 s in all.
-MAX_WORK = 200_000
+MAX_WORK = 150_000
 
 
 def budget_for(m: int, n: int) -> int:
@@ -79,9 +79,7 @@ class _Problem:
     def start_state(self) -> tuple[list[int], list[int], list[int]]:
         return list(self.cost), list(self.x), list(self.y)
 
-    def place(
-        self, k: int, ca: list[int], xs: list[int], ys: list[int]
-    ) -> tuple[tuple[int, ...], int, int]:
+    def place(self, k: int, ca: list[int], xs: list[int], ys: list[int]) -> tuple[tuple[int, ...], int, int]:
         """Object k next: its group (agent indices), start and finish; updates the state."""
         o = self.objs[k]
         lx, ly = o.location
@@ -89,9 +87,7 @@ class _Problem:
         if per is None:
             reach = [c + abs(lx - x) + abs(ly - y) for c, x, y in zip(ca, xs, ys)]
         else:
-            reach = [
-                arrival(c, abs(lx - x) + abs(ly - y), p) for c, x, y, p in zip(ca, xs, ys, per)
-            ]
+            reach = [arrival(c, abs(lx - x) + abs(ly - y), p) for c, x, y, p in zip(ca, xs, ys, per)]
         group = tuple(sorted(sorted(range(self.n), key=reach.__getitem__)[: o.required]))
         m_p = max(reach[j] for j in group)
         carry = abs(lx - o.destination[0]) + abs(ly - o.destination[1])

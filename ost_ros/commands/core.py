@@ -204,7 +204,14 @@ def add_protocol_options(p: argparse.ArgumentParser) -> None:
 
 
 def protocol_settings(args: argparse.Namespace) -> Any:
-    """The chosen protocol's settings from its flags (one-line error for a bad value)."""
+    """The chosen protocol's settings from its flags (one-line error for a bad value, or for a
+    flag of another protocol)."""
+    spec = protocols.get(args.protocol)
+    own = {o.name for o in spec.options}
+    for other in protocols.REGISTRY.values():
+        for opt in other.options:
+            if opt.name not in own and getattr(args, opt.name, None) is not None:
+                raise UsageError(f"{opt.flag} is an option of {other.name}, not of {args.protocol}")
     try:
         return protocols.settings_from(args.protocol, vars(args))
     except protocols.ProtocolError as exc:

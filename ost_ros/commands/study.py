@@ -71,7 +71,6 @@ def register(sub) -> None:
         help="progress bar on stderr (default: when stderr is a terminal)",
     )
 
-
     p = leaf(
         sub,
         "compare",

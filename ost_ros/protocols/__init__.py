@@ -18,9 +18,7 @@ from ost_ros.protocols import auction, ccp, hcp, ncp
 from ost_ros.protocols.base import Capabilities, Option, ProtocolAgent, ProtocolError, ProtocolSpec
 from ost_ros.team import TeamInfo
 
-REGISTRY: dict[str, ProtocolSpec] = {
-    spec.name: spec for spec in (ccp.SPEC, hcp.SPEC, ncp.SPEC, auction.SPEC)
-}
+REGISTRY: dict[str, ProtocolSpec] = {spec.name: spec for spec in (ccp.SPEC, hcp.SPEC, ncp.SPEC, auction.SPEC)}
 
 __all__ = [
     "REGISTRY",

@@ -50,13 +50,15 @@ class Variant:
             return simulate(scenario, self.protocol, engine="event")
         ci = task.objects if self.ci == "M" else int(self.ci)
         settings = protocols.settings_from(self.protocol, {"planner": self.planner})
-        return simulate(scenario, self.protocol, CoordinationPolicy(ci=max(ci, 1)), engine="event", settings=settings)
+        return simulate(
+            scenario, self.protocol, CoordinationPolicy(ci=max(ci, 1)), engine="event", settings=settings
+        )
 
 
 def variants() -> list[Variant]:
     """Every protocol of the registry; those with triggers at CI = 1 and CI = M; CCP with each
     planner."""
-    out = []
+    out: list[Variant] = []
     for spec in protocols.REGISTRY.values():
         planners = [o for o in spec.options if o.name == "planner"]
         names = ("paper", "improved") if planners else ("paper",)
@@ -97,12 +99,24 @@ def run_task(task: Task) -> list[Row]:
         if not r.completed or r.rejections or r.warnings:
             raise RuntimeError(f"{v.label} on N={task.agents} M={task.objects} set {task.set}: {r.error}")
         rows.append(
-            Row(task.agents, task.objects, task.set, task.seed, v.label, int(r.makespan or 0), bound, r.messages, cpu)
+            Row(
+                task.agents,
+                task.objects,
+                task.set,
+                task.seed,
+                v.label,
+                int(r.makespan or 0),
+                bound,
+                r.messages,
+                cpu,
+            )
         )
     return rows
 
 
-def run_all(tasks: list[Task], workers: int | None = None, progress: bool | None = None) -> tuple[list[Row], float]:
+def run_all(
+    tasks: list[Task], workers: int | None = None, progress: bool | None = None
+) -> tuple[list[Row], float]:
     """Every variant on every task (on every core, with a progress bar); rows and wall seconds."""
     from tqdm import tqdm
 
@@ -180,14 +194,16 @@ def summarise(rows: list[Row]) -> list[Cell]:
 
 def findings(rows: list[Row], cells: list[Cell]) -> list[str]:
     """The report's statements, each computed from the rows."""
-    by_key = {(r.variant, r.agents, r.objects, r.set): r for r in rows}
+    by_key: dict[tuple[str, int, int, int], Row] = {(r.variant, r.agents, r.objects, r.set): r for r in rows}
     labels = sorted({r.variant for r in rows})
     out = []
     # who wins each (N, M)
     wins: dict[str, int] = {}
     points = sorted({(c.agents, c.objects) for c in cells})
     for n, m in points:
-        best = min((c for c in cells if (c.agents, c.objects) == (n, m)), key=lambda c: (c.makespan, c.variant))
+        best = min(
+            (c for c in cells if (c.agents, c.objects) == (n, m)), key=lambda c: (c.makespan, c.variant)
+        )
         wins[best.variant] = wins.get(best.variant, 0) + 1
     ranking = ", ".join(f"{v} {k}" for v, k in sorted(wins.items(), key=lambda kv: (-kv[1], kv[0])))
     out.append(f"Lowest mean makespan, by (N, M) point ({len(points)} points): {ranking}.")
@@ -196,9 +212,9 @@ def findings(rows: list[Row], cells: list[Cell]) -> list[str]:
         if v == PAPER:
             continue
         change = [
-            100 * (by_key[(v, *k[1:])].makespan / r.makespan - 1)
-            for k, r in by_key.items()
-            if k[0] == PAPER and (v, *k[1:]) in by_key
+            100 * (by_key[(v, n, m, s)].makespan / r.makespan - 1)
+            for (w, n, m, s), r in by_key.items()
+            if w == PAPER and (v, n, m, s) in by_key
         ]
         if not change:
             continue
@@ -210,9 +226,11 @@ def findings(rows: list[Row], cells: list[Cell]) -> list[str]:
         )
     # the improved planner against the paper's at the same trigger
     for ci in ("1", "M"):
-        paper, better = f"CCP CI={ci}", f"CCP CI={ci} improved"
+        paper, improved = f"CCP CI={ci}", f"CCP CI={ci} improved"
         pairs = [
-            (r, by_key[(better, *k[1:])]) for k, r in by_key.items() if k[0] == paper and (better, *k[1:]) in by_key
+            (r, by_key[(improved, n, m, s)])
+            for (w, n, m, s), r in by_key.items()
+            if w == paper and (improved, n, m, s) in by_key
         ]
         if pairs:
             change = [100 * (b.makespan / a.makespan - 1) for a, b in pairs]
@@ -223,10 +241,13 @@ def findings(rows: list[Row], cells: list[Cell]) -> list[str]:
                 f"CPU per run {statistics.mean(x.cpu_s for _, x in pairs):.2f} s against "
                 f"{statistics.mean(a.cpu_s for a, _ in pairs):.2f} s."
             )
-    msgs = {c.variant: [] for c in cells}
+    msgs: dict[str, list[float]] = {c.variant: [] for c in cells}
     for c in cells:
         msgs[c.variant].append(c.messages_per_object)
-    text = ", ".join(f"{v} {statistics.mean(x):.1f}" for v, x in sorted(msgs.items(), key=lambda kv: statistics.mean(kv[1])))
+    text = ", ".join(
+        f"{v} {statistics.mean(x):.1f}"
+        for v, x in sorted(msgs.items(), key=lambda kv: statistics.mean(kv[1]))
+    )
     out.append(f"Protocol messages per object (mean over the points): {text}.")
     return out
 
@@ -273,7 +294,9 @@ def plot(cells: list[Cell], out: Path) -> list[str]:
                 linestyle="--" if "improved" in v else "-",
             )
         ax.set_xscale("log")
-        ax.set_xticks(sorted({c.objects for c in cells}), [str(m) for m in sorted({c.objects for c in cells})])
+        ax.set_xticks(
+            sorted({c.objects for c in cells}), [str(m) for m in sorted({c.objects for c in cells})]
+        )
         ax.set_xlabel("M (objects, log scale)")
         ax.set_ylabel("makespan (steps), mean ± 95 % interval")
         ax.set_title(f"Every protocol and planner, N = {n} robots, 500×200 grid")

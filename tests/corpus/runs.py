@@ -91,6 +91,24 @@ def sim_commands() -> list[tuple[str, list[str]]]:
     sim("fail-hcp", "mid", "--protocol", "hcp", "--fail", "1:20", engines=("step",))
     sim("negotiated-ccp", "hetero", "--protocol", "ccp", "--partition", "negotiated")
     sim("negotiated-ncp", "hetero", "--protocol", "ncp", "--partition", "negotiated", engines=("event",))
+    # the peers (recorded when they were added; they must not drift either)
+    for sc in ("small", "crowd", "hetero"):
+        sim("ccp-improved-ci1", sc, "--protocol", "ccp", "--ci", "1", "--planner", "improved")
+        sim("auction", sc, "--protocol", "auction")
+    sim("ccp-improved-ciM", "mid", "--protocol", "ccp", "--ci", "1000", "--planner", "improved")
+    sim("fail-ncp", "crowd", "--protocol", "ncp", "--fail", "2:40", engines=("step",))
+    sim("fail-auction", "crowd", "--protocol", "auction", "--fail", "2:40", engines=("step",))
+    sim(
+        "fail-coordinator",
+        "crowd",
+        "--protocol",
+        "ccp",
+        "--coordination",
+        "coordinator",
+        "--fail",
+        "0:40",
+        engines=("step",),
+    )
     # the text a user reads, not only the JSON
     out.append(("sim-small-ccp-text", ["sim", "{dir}/small.yaml", "--protocol", "ccp"]))
     out.append(("sim-crowd-hcp-text", ["sim", "{dir}/crowd.yaml", "--protocol", "hcp"]))
@@ -101,6 +119,7 @@ def other_commands() -> list[tuple[str, list[str]]]:
     return [
         ("optimal-small", ["optimal", "{dir}/small.yaml", "--json"]),
         ("schedule-state", ["schedule", "{dir}/state.json", "--json"]),
+        ("schedule-state-improved", ["schedule", "{dir}/state.json", "--json", "--planner", "improved"]),
         ("partition-hetero", ["negotiate", "partition", "--scenario", "{dir}/hetero.yaml", "--json"]),
         (
             "negotiate-targets",

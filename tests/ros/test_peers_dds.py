@@ -17,7 +17,9 @@ def test_auction_over_dds_equals_ost_sim(tmp_path):
     path = tmp_path / "scenario.yaml"
     path.write_text(dump_scenario(scenario))
     expected = reference(scenario, "auction", CoordinationPolicy())
-    run = ost_up("--scenario", str(path), "--protocol", "auction", "--json", "--run-dir", str(tmp_path / "run"))
+    run = ost_up(
+        "--scenario", str(path), "--protocol", "auction", "--json", "--run-dir", str(tmp_path / "run")
+    )
     assert run.returncode == 0, run.stderr
     assert expected["completed"] and expected["agreement"] and expected["trigger"] == "auction"
     assert result_json(run.stdout) == expected
@@ -34,7 +36,9 @@ def test_improved_planner_over_dds_equals_ost_sim(tmp_path):
     path.write_text(dump_scenario(scenario))
     expected = reference(scenario, "ccp", CoordinationPolicy(ci=1), settings=CcpSettings("improved"))
     paper = reference(scenario, "ccp", CoordinationPolicy(ci=1))
-    run = ost_up("--scenario", str(path), "--planner", "improved", "--json", "--run-dir", str(tmp_path / "run"))
+    run = ost_up(
+        "--scenario", str(path), "--planner", "improved", "--json", "--run-dir", str(tmp_path / "run")
+    )
     assert run.returncode == 0, run.stderr
     assert result_json(run.stdout) == expected
     assert expected["makespan"] < paper["makespan"]  # the scenario is one where it matters

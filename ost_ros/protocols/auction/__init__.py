@@ -21,6 +21,12 @@ def make_agent(
     return ScheduleAgent(agent_id, team, AuctionComm(agent_id, team, policy), "auction")
 
 
+def team_comm(team: TeamInfo, policy: CoordinationPolicy, settings: Any = None) -> AuctionComm:
+    """Every bid and award is public: one comm module speaking for the whole team computes the
+    same auctions (the analytic engine)."""
+    return AuctionComm(team.agent_ids[0], team, policy, voices=team.agent_ids)
+
+
 SPEC = ProtocolSpec(
     name="auction",
     label="auction",
@@ -28,7 +34,10 @@ SPEC = ProtocolSpec(
     make_agent=make_agent,
     messages=(ObjectFound, SearchDone, Bid, Award, Status),
     states=STATES,
-    capabilities=Capabilities(recovers_failures=True, own_sweeps=True, heterogeneous=True),
+    capabilities=Capabilities(
+        recovers_failures=True, own_sweeps=True, heterogeneous=True, team_knowledge=True
+    ),
+    team_comm=team_comm,
     note="Not in the paper: market-based allocation as fleet dispatchers use it — the finder "
     "auctions each object, every robot bids when it could be there, the n_i lowest bids win "
     "(docs/interpretation.md, The auction).",

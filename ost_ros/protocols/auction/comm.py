@@ -69,7 +69,12 @@ class AuctionComm(CcpComm):
         self._decide(t)
         if k.unscheduled:
             self._coordinate(t)
-        if self.state is not CommState.CLOSED and self.all_searched and not self.auctions and not k.unscheduled:
+        if (
+            self.state is not CommState.CLOSED
+            and self.all_searched
+            and not self.auctions
+            and not k.unscheduled
+        ):
             self.state = CommState.CLOSED
             k.predicted_makespan = k.predict_makespan(t, self.alive)
 
@@ -147,7 +152,9 @@ class AuctionComm(CcpComm):
         auction = self.auctions.get(msg.object)
         o = k.objects.get(msg.object)
         if auction is None or o is None or msg.sender != auction.auctioneer:
-            k.warnings.append(f"agent {msg.sender}: award of object {msg.object} it does not auction; ignored")
+            k.warnings.append(
+                f"agent {msg.sender}: award of object {msg.object} it does not auction; ignored"
+            )
             return
         if len(set(msg.agents)) != o.required or any(j not in self.alive for j in msg.agents):
             k.warnings.append(

@@ -51,3 +51,30 @@ def test_refused_combinations():
         simulate(s, "ccp", policy, engine="event")
     with pytest.raises(ValueError, match="organisation must be"):
         CoordinationPolicy(organisation="anarchy")
+
+
+def test_the_lowest_survivor_coordinates_once_the_coordinator_died():
+    from ost_msgs_py.messages import ScheduleUpdate
+    from ost_ros.engines.step import run_steps
+    from ost_ros.model import Grid
+    from ost_ros.protocols import make_agents
+    from ost_ros.scenario import generate_scenario
+
+    s = generate_scenario(4, 8, 1, Grid(30, 12), 3)
+    policy = CoordinationPolicy(ci=1, organisation="coordinator")
+    found = simulate(s, "ccp", policy).found
+    dies = sorted(found.values())[len(found) // 2]  # coordinator 0 dies mid-search
+    agents = make_agents(s, "ccp", policy)
+    senders = []
+    receive = agents[3].comm.receive
+
+    def listen(t, messages):
+        senders.extend((t, m.sender) for m in messages if isinstance(m, ScheduleUpdate))
+        receive(t, messages)
+
+    agents[3].comm.receive = listen
+    r = run_steps(s, agents, failures={0: dies})
+    assert r.completed and r.agreement and not r.warnings
+    assert {who for t, who in senders if t <= dies} == {0}
+    assert {who for t, who in senders if t > dies} == {1}  # agent 0 died: agent 1 coordinates
+    assert r.to_dict() == simulate(s, "ccp", policy, failures={0: dies}).to_dict()

@@ -1,8 +1,10 @@
-"""Robot failures in the core (CCP and HCP): the recovery arithmetic by hand, a hand-checked run
-with a carrier failing mid-carry, and the promises as properties on random scenarios — with at
-least n_max survivors every object is still delivered, survivors agree, and (CCP) planned =
-executed after the last recovery; with fewer, the run ends saying which objects could not be
-moved and why."""
+"""Robot failures in the core (every protocol, and CCP's coordinator organisation): the recovery
+arithmetic by hand, a hand-checked run with a carrier failing mid-carry, and the promises as
+properties on random scenarios — with at least n_max survivors every object is still delivered,
+survivors agree, and (shared-schedule protocols) planned = executed after the last recovery;
+with fewer, the run ends saying which objects could not be moved and why."""
+
+import dataclasses
 
 import pytest
 from hypothesis import given, settings
@@ -104,11 +106,13 @@ def failing_runs(draw):
     return s, policy, {a: draw(st.integers(0, horizon)) for a in dead}
 
 
-@pytest.mark.parametrize("protocol", ["ccp", "hcp"])
+@pytest.mark.parametrize("protocol", ["ccp", "hcp", "ncp", "auction", "ccp-coordinator"])
 @settings(max_examples=120)
 @given(run=failing_runs())
 def test_failures_never_lose_an_object_the_survivors_can_carry(protocol, run):
     s, policy, failures = run
+    if protocol == "ccp-coordinator":  # the next coordinator is the lowest surviving id
+        protocol, policy = "ccp", dataclasses.replace(policy, organisation="coordinator")
     r = simulate(s, protocol, policy, failures=failures)
     survivors = s.n_agents - len(failures)
     assert not r.rejections and not r.warnings and r.agreement

@@ -1,0 +1,51 @@
+"""``ost compare`` (ost_ros.study.compare): every registered protocol, and CCP with each planner,
+runs on the same object sets; the summary's intervals and the report's statements are computed
+from the rows (checked against a recomputation), and the files a user opens are written."""
+
+import math
+import statistics
+
+from ost_ros import protocols
+from ost_ros.study.compare import PAPER, findings, run_all, summarise, t95, variants, write_all
+from ost_ros.study.design import Design, Task
+
+
+def tasks():
+    d = Design()
+    return [Task(10, 10, s, d.object_seed(10, s), ()) for s in range(2)]
+
+
+def test_every_protocol_and_planner_is_compared():
+    labels = {v.label for v in variants()}
+    assert labels == {
+        "HCP",
+        "AUCTION",
+        "CCP CI=1",
+        "CCP CI=M",
+        "CCP CI=1 improved",
+        "CCP CI=M improved",
+        "NCP CI=1",
+        "NCP CI=M",
+    }
+    assert {v.protocol for v in variants()} == set(protocols.names())
+
+
+def test_compare_writes_a_report_computed_from_its_runs(tmp_path):
+    rows, wall = run_all(tasks(), workers=1, progress=False)
+    assert len(rows) == 2 * len(variants()) and wall > 0
+    cells = summarise(rows)
+    for c in cells:
+        xs = [r.makespan for r in rows if r.variant == c.variant]
+        assert math.isclose(c.makespan, statistics.mean(xs))
+        assert math.isclose(c.half, t95(1) * statistics.stdev(xs) / math.sqrt(2))
+    text = "\n".join(findings(rows, cells))
+    # the improved planner is never worse than the paper's on these runs, and the report says so
+    paper = {r.set: r.makespan for r in rows if r.variant == PAPER}
+    better = {r.set: r.makespan for r in rows if r.variant == "CCP CI=1 improved"}
+    assert all(better[s] <= paper[s] for s in paper)
+    assert "Improved planner vs the paper's at CI=1" in text and "never worse: yes" in text
+    files = write_all(rows, wall, tmp_path)
+    assert files[:3] == ["report.md", "runs.csv", "summary.csv"] and files[3] == "compare_N10.png"
+    report = (tmp_path / "report.md").read_text()
+    assert "| 10 | 10 |" in report and "![compare_N10.png](compare_N10.png)" in report
+    assert len((tmp_path / "runs.csv").read_text().splitlines()) == 1 + len(rows)
