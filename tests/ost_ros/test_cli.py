@@ -216,7 +216,6 @@ def test_sim_with_a_failing_robot(scenario):
         (["--fail", "9:3"], "no such agent"),
         (["--fail", "1:x"], "expected AGENT:STEP"),
         (["--fail", "1:3", "--fail", "1:5"], "only once"),
-        (["--fail", "1:3", "--protocol", "ncp"], "ncp does not recover"),
         (["--fail", "1:3", "--engine", "event"], "step engine"),
     ],
 )
@@ -244,10 +243,20 @@ def test_sim_coordinator_organisation(scenario):
     for args, text in [
         (["--protocol", "hcp"], "for ccp only"),
         (["--engine", "event"], "step engine"),
-        (["--fail", "1:3"], "does not recover"),
     ]:
         bad = ost("sim", scenario, "--coordination", "coordinator", *args)
         assert bad.returncode == 2 and text in bad.stderr, bad.stderr
+    # The organisation recovers from a failure like the others: the lowest survivor coordinates.
+    r = ost("sim", scenario, "--json", "--coordination", "coordinator", "--agents", 5, "--fail", "0:30")
+    assert r.returncode == 0 and json.loads(r.stdout)["completed"], r.stderr
+
+
+@pytest.mark.parametrize("protocol", ["ncp", "auction", "hcp"])
+def test_sim_every_protocol_recovers_from_a_failure(scenario, protocol):
+    r = ost("sim", scenario, "--json", "--protocol", protocol, "--agents", 5, "--fail", "1:30")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert d["failures"] == [{"agent": 1, "step": 30}] and d["completed"]
 
 
 def test_keys_make_and_show(scenario, tmp_path):

@@ -21,9 +21,9 @@ def test_design_matches_the_paper():
     tasks = d.tasks()
     assert len(tasks) == 5 * 8 * 10
     full = [t for t in tasks if t.agents in (10, 50)]
-    # CCP CI=1, CI=M, HCP, the 7 other CIs, and NCP (CI=1, CI=M) as the third protocol
+    # CCP CI=1, CI=M, HCP, the auction, the 7 other CIs, and NCP (CI=1, CI=M)
     assert all(
-        Variant("hcp") in t.variants and Variant("ncp", "M") in t.variants and len(t.variants) == 12
+        {Variant("hcp"), Variant("auction"), Variant("ncp", "M")} <= set(t.variants) and len(t.variants) == 13
         for t in full
     )
     # The same object set for every N.
@@ -42,8 +42,8 @@ def test_tiny_study_end_to_end(tmp_path):
     rows, timing = run_design(TINY, workers=2, progress=False)
     rows1, _ = run_design(TINY, workers=1, progress=False)
     assert rows == rows1  # reproducible, whatever the workers
-    # N=10: CCP CI=1, M, HCP, CCP CI=10, NCP CI=1, M; N=20: CCP CI=1, M
-    assert len(rows) == 2 * (1 + 1 + 1 + 1 + 2) + 2 * 2
+    # N=10: CCP CI=1, M, HCP, AUCTION, CCP CI=10, NCP CI=1, M; N=20: CCP CI=1, M
+    assert len(rows) == 2 * (1 + 1 + 1 + 1 + 1 + 2) + 2 * 2
     assert all(r.makespan >= r.lower_bound > 0 for r in rows)
     assert timing.workers == 2 and timing.cpu > 0 and timing.wall > 0
     report = write_all(tmp_path, TINY, rows, timing, quick=True)
