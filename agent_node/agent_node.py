@@ -29,7 +29,7 @@ import sys
 import rclpy
 import yaml
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_msgs.msg import String
 
@@ -385,6 +385,7 @@ def declare(node: Node) -> None:
     )
     p("keys", "", "the run's key directory (ost keys make): signs and checks every message")
     p("insecure", False, "no signatures: accept unsigned messages (for comparison)")
+    p("executor", "events", "how the node waits for samples", constraints="events or single")
 
 
 def agent_id_from_args(argv: list[str]) -> int | None:
@@ -434,10 +435,9 @@ def main(args=None) -> int:
         name = tp.agent_node_name(agent_id) if agent_id is not None else "agent"
         node = AgentNode(name)
         runner = node.runner
-        # One executor for the node's life: rclpy.spin_once(node) adds and removes the node on
-        # every call, rebuilding the wait set for each sample (one sample per message kind now).
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
+        # One executor for the node's life (rclpy.spin_once(node) adds and removes the node on
+        # every call); by default the events executor (transport.EXECUTORS).
+        executor = tp.executor(node, node.get_parameter("executor").value)
         while rclpy.ok() and not runner.done:
             executor.spin_once(timeout_sec=0.5)
         code = runner.exit_code

@@ -286,10 +286,10 @@ class AgentRuntime:
         steps = unroll(plan, obs.t, obs.position, 1 + min(self.lookahead, self._horizon))
         if not steps or not _same_action(action, steps[0]):
             return ()  # the plan does not start with what it did (never, if plans are right)
-        departures = self.agent.departures()
+        where = self._known_by_cell(self.agent.departures())
         out = []
         for st in steps[1:]:
-            sensed = self._predict_sensed(st.position, st.t, departures) if st.reads_sensor else ()
+            sensed = _predict_sensed(where, st.position, st.t) if st.reads_sensor else ()
             if any(self.agent.news(self._known[i]) for i in sensed):
                 break
             out.append(
@@ -297,20 +297,15 @@ class AgentRuntime:
             )
         return tuple(out)
 
-    def _predict_sensed(self, pos: Cell, s: int, departures: Mapping[int, int]) -> tuple[int, ...]:
-        """Known objects expected in the 3×3 block at step ``s``: where they were found, unless
-        the agent knows their carry has started by then."""
-        by_cell: dict[Cell, list[int]] = {}
+    def _known_by_cell(self, departures: Mapping[int, int]) -> dict[Cell, list[tuple[int, int | None]]]:
+        """Known objects by the cell they were found in, each with the step its carry starts
+        (None: not known to start), ids ascending: built once per plan, read at every step."""
+        by_cell: dict[Cell, list[tuple[int, int | None]]] = {}
         for info in self._known.values():
-            start = departures.get(info.id)
-            if start is None or start >= s:
-                by_cell.setdefault(info.location, []).append(info.id)
-        out: list[int] = []
-        for dx, dy in _SENSE:
-            ids = by_cell.get((pos[0] + dx, pos[1] + dy))
-            if ids:
-                out.extend(sorted(ids))
-        return tuple(out)
+            by_cell.setdefault(info.location, []).append((info.id, departures.get(info.id)))
+        for entries in by_cell.values():
+            entries.sort()
+        return by_cell
 
     # ------------------------------------------------------------------ end of run
 
@@ -331,6 +326,19 @@ class AgentRuntime:
             k.view,
             run=self.run or "",
         )
+
+
+def _predict_sensed(
+    by_cell: Mapping[Cell, list[tuple[int, int | None]]], pos: Cell, s: int
+) -> tuple[int, ...]:
+    """Known objects expected in the 3×3 block at step ``s``: where they were found, unless
+    the agent knows their carry has started by then."""
+    out: list[int] = []
+    for dx, dy in _SENSE:
+        entries = by_cell.get((pos[0] + dx, pos[1] + dy))
+        if entries:
+            out.extend(i for i, start in entries if start is None or start >= s)
+    return tuple(out)
 
 
 def _same_action(action: Action, step: PlanStep | PlannedStep) -> bool:

@@ -20,6 +20,8 @@ from typing import Any
 
 from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.executors import Executor, SingleThreadedExecutor
+from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
 
 from agent_node.params import ParameterError
@@ -250,6 +252,28 @@ def from_ros_or_warn(msg: Any, topic: str, throttle: Throttle, guard: NodeAuth |
 # 600 node processes here, once at exit and once destroying a node right after creating it), so
 # a node process could hang after its work is done.
 DESTROY_TIMEOUT_S = 5.0
+
+
+# How a node waits for its samples. ``events``: rclpy's EventsExecutor (C++; about 10 µs a
+# sample); ``single``: a SingleThreadedExecutor, which rebuilds its wait set on every wait
+# (about 130 µs a sample) — the lockstep round trip is mostly that (benchmarks/bench_floor.py).
+EXECUTORS = ("events", "single")
+
+
+def executor(node: Node, name: str) -> Executor:
+    """The executor ``name`` (one of EXECUTORS) with ``node`` added; the caller loops on
+    ``spin_once(timeout_sec=...)`` until its node is done."""
+    if name not in EXECUTORS:
+        raise ParameterError(f"executor: {name!r} is not one of {', '.join(EXECUTORS)}")
+    ex: Executor
+    if name == "single":
+        ex = SingleThreadedExecutor()
+    else:
+        from rclpy.experimental import EventsExecutor
+
+        ex = EventsExecutor()
+    ex.add_node(node)
+    return ex
 
 
 def guard_exit(seconds: float = DESTROY_TIMEOUT_S) -> None:

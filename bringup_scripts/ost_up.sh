@@ -34,6 +34,8 @@ ROS:
   --namespace NS             the run's namespace (default ost: /ost/world, /ost/object_found, ...);
                              two teams in two namespaces share a domain without interfering
   --domain-id D              ROS_DOMAIN_ID (default: a free one in 10..99)
+  --executor events|single   how the nodes wait for samples (default events: rclpy's
+                             EventsExecutor; single: SingleThreadedExecutor)
   --insecure                 no signed messages (default: every message is signed with keys
                              made for the run in DIR/keys; receivers drop the rest)
 watch:
@@ -62,7 +64,7 @@ say() { echo "$me: $*" >&2; }
 
 agents="" objects="" seed="" scenario="" protocol="ccp" ci="1" interval="" width="" height="" nmax=""
 mute="" respawn=0 hosts=0 loss=0 discovery="multicast" kills=() failure_timeout=1.0 partition=equal coordination=distributed
-record="" foxglove=0 insecure=0 planner=paper
+record="" foxglove=0 insecure=0 planner=paper executor=events
 domain="${ROS_DOMAIN_ID:-}" run_dir="" json=0 skip=true max_steps=0 timeout=0 background=0 stay=0 ns="ost"
 need() { [ $# -ge 2 ] && [ -n "$2" ] || die "$1 needs a value"; }
 int() { [[ "$2" =~ ^[0-9]+$ ]] || die "$1: expected a non-negative integer, got '$2'"; }
@@ -105,6 +107,8 @@ while [ $# -gt 0 ]; do
       [ "$foxglove" -ge 1 ] && [ "$foxglove" -le 65535 ] || die "--foxglove: port $foxglove is not in 1..65535" ;;
     --json) json=1; shift ;;
     --insecure) insecure=1; shift ;;
+    --executor) need "$@"; case "$2" in events|single) ;; *)
+        die "--executor: '$2' is not events or single" ;; esac; executor="$2"; shift 2 ;;
     --no-skip) skip=false; shift ;;
     --background) background=1; shift ;;
     --stay) stay=1; shift ;;   # (internal: --background's supervisor) keep the world up after the run
@@ -155,7 +159,7 @@ if [ "$background" = 1 ]; then
   for a in "$@"; do args+=("$a"); done
   # Re-run this script in the background with the same options, supervising the run.
   fwd=(--run-dir "$run_dir" --protocol "$protocol" --ci "$ci" --max-steps "$max_steps" --timeout "$timeout"
-       --namespace "$ns" --planner "$planner" --stay)
+       --namespace "$ns" --planner "$planner" --executor "$executor" --stay)
   [ -n "$agents" ] && fwd+=(--agents "$agents")
   [ -n "$scenario" ] && fwd+=(--scenario "$scenario")
   [ -n "$objects" ] && fwd+=(--objects "$objects" --seed "$seed")
@@ -293,6 +297,7 @@ cat > "$run_dir/params.yaml" <<EOF
     planner: "$planner"
     failure_timeout: $failure_timeout
     observers: $observers
+    executor: "$executor"
 $auth_params
 EOF
 cat > "$run_dir/world_params.yaml" <<EOF
@@ -308,6 +313,7 @@ cat > "$run_dir/world_params.yaml" <<EOF
     exit_when_done: $([ "$stay" = 1 ] && echo false || echo true)
     observers: $observers
     progress_file: "$run_dir/progress"
+    executor: "$executor"
 $auth_params
 EOF
 

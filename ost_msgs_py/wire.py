@@ -180,25 +180,24 @@ def _plan_from_ros(msg: Any, where: str) -> tuple[PlanStep, ...]:
         raise MessageError(
             f"{where}.sensed: {len(msg.sensed)} ids, sensed_count says {sum(msg.sensed_count)}"
         )
+    bad = next((i for i, code in enumerate(msg.kind) if code >= len(_KINDS)), None)
+    if bad is not None:
+        raise MessageError(
+            f"{where}.kind[{bad}]: {msg.kind[bad]} is not one of 0 (wait), 1 (move), 2 (carry)"
+        )
+    # Column by column (zip), not index by index: the world decodes every agent's plan each
+    # round trip, up to the lookahead's length.
+    sensed_ids = list(msg.sensed)
     out, k = [], 0
-    for i in range(n):
-        code = msg.kind[i]
-        if code >= len(_KINDS):
-            raise MessageError(f"{where}.kind[{i}]: {code} is not one of 0 (wait), 1 (move), 2 (carry)")
-        c = msg.sensed_count[i]
-        sensed = tuple(msg.sensed[k : k + c])
-        k += c
+    for x, y, searching, c, code, dx, dy, obj, state in zip(
+        msg.x, msg.y, msg.searching, msg.sensed_count, msg.kind, msg.dx, msg.dy, msg.object, msg.state
+    ):
         out.append(
             PlanStep(
-                (msg.x[i], msg.y[i]),
-                bool(msg.searching[i]),
-                sensed,
-                _KINDS[code],
-                (msg.dx[i], msg.dy[i]),
-                msg.object[i],
-                msg.state[i],
+                (x, y), bool(searching), tuple(sensed_ids[k : k + c]), _KINDS[code], (dx, dy), obj, state
             )
         )
+        k += c
     return tuple(out)
 
 

@@ -33,6 +33,7 @@ import json
 import os
 import pickle
 import secrets
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -40,7 +41,7 @@ from pathlib import Path
 import rclpy
 from builtin_interfaces.msg import Time
 from rclpy.event_handler import SubscriptionEventCallbacks
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
@@ -109,6 +110,7 @@ class WorldNode(Node):
         ("progress_file", "", "write 'step delivered objects' there as the run goes ('': none)", None, None),
         ("keys", "", "the run's key directory (ost keys make): signs and checks every message", None, None),
         ("insecure", False, "no signatures: accept unsigned messages (for comparison)", None, None),
+        ("executor", "events", "how the node waits for samples: events or single", None, None),
     )
 
     def __init__(self):
@@ -148,6 +150,11 @@ class WorldNode(Node):
         self.done = False
         self.result_at: float | None = None
         self.ticks_sent = 0
+        # Round trips timed (tick sent → last action in), quiet ones and those with protocol
+        # messages apart (benchmarks/bench_ros.py sets them against bench_floor.py's floor).
+        self.tick_at = 0.0
+        self.round_trip_s: dict[str, list[float]] = {"quiet": [], "messages": []}
+        self.bring_up_s: float | None = None
         self.t_start = 0.0
         self.last_progress = self.stall_since = time.monotonic()
         self.last_sent: list = []  # what the current step published (ROS messages), for resend()
@@ -305,6 +312,7 @@ class WorldNode(Node):
         self.rt.organisation = min(r.organisation for r in self.ready.values())
         self.started = True
         self.t_start = time.monotonic()
+        self.bring_up_s = process_age()
         self.get_logger().info(f"all {len(self.ids)} agents ready; step 0")
         self.send(self.rt.start())
 
@@ -355,6 +363,7 @@ class WorldNode(Node):
         self.last_agents = [tick.observation.agent for tick in nxt]
         self.ticks_sent += 1
         self.save_checkpoint()  # before publishing: a published step is always recoverable
+        self.tick_at = time.monotonic()
         for tick, msg in zip(nxt, self.last_sent):
             self.guard.publish(self.pub_tick[tick.observation.agent], msg)
 
@@ -416,7 +425,11 @@ class WorldNode(Node):
             self.throttle.warn(self.sub_acted.topic_name, f"agent {a.action.agent}", str(exc))
             return
         if self.rt.step_complete:
-            self.send(self.rt.advance())
+            before = self.rt.messages
+            nxt = self.rt.advance()
+            kind = "messages" if self.rt.messages > before else "quiet"
+            self.round_trip_s[kind].append(time.monotonic() - self.tick_at)
+            self.send(nxt)
 
     # ------------------------------------------------------------------ failures
 
@@ -508,6 +521,12 @@ class WorldNode(Node):
             "round_trips": self.rt.round_trips,
             "skipped_steps": self.rt.skipped,
             "protocol_messages": self.rt.messages,
+            # median round trip (ms) and how many, quiet and with protocol messages
+            "round_trip_ms": {
+                k: {"median": round(1000 * statistics.median(v), 2) if v else None, "n": len(v)}
+                for k, v in self.round_trip_s.items()
+            },
+            "bring_up_s": None if self.bring_up_s is None else round(self.bring_up_s, 2),
             # messages dropped for their signature, by the world and (their reports) the agents
             "auth": {"secure": self.guard.secure, "dropped": self.dropped()},
         }
@@ -526,14 +545,25 @@ class WorldNode(Node):
         return total
 
 
+def process_age() -> float | None:
+    """Seconds since this process started (Linux /proc; None elsewhere): the world starts with
+    the agents, so at the run's start this is the bring-up (processes up, discovery done)."""
+    try:
+        uptime = float(Path("/proc/uptime").read_text().split()[0])
+        start = int(Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()[19])
+        return uptime - start / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 def main(args=None) -> int:
     rclpy.init(args=args)
     node = None
     code = 0
     try:
         node = WorldNode()
-        executor = SingleThreadedExecutor()  # kept: rclpy.spin_once(node) rebuilds per call
-        executor.add_node(node)
+        # One executor for the node's life; by default the events executor (transport.EXECUTORS).
+        executor = tp.executor(node, node.get_parameter("executor").value)
         while rclpy.ok() and not node.done:
             executor.spin_once(timeout_sec=0.5)
         code = 0 if node.rt.ended is not None and node.rt.ended.completed else 1
