@@ -367,7 +367,7 @@ def declare(node: Node) -> None:
         "who runs Algorithm Coordination",
         constraints="distributed or coordinator",
     )
-    p("lookahead", 64, "quiet steps planned ahead for event skipping (0: off)", 0, 100_000)
+    p("lookahead", 1024, "quiet steps planned ahead for event skipping (0: off)", 0, 100_000)
     p(
         "failure_timeout",
         tp.FAILURE_TIMEOUT_S,

@@ -58,13 +58,18 @@ class World:
     # ------------------------------------------------------------------ sensing
 
     def observe(self, agent_id: int) -> Observation:
+        sensed = tuple(self.objects[i].spec for i in self.sensed_ids(agent_id))
+        return Observation(agent_id, self.t, self.positions[agent_id], sensed)
+
+    def sensed_ids(self, agent_id: int) -> tuple[int, ...]:
+        """Ids of the objects in the agent's 3×3 block, in the order ``observe`` lists them."""
         pos = self.positions[agent_id]
-        sensed: list[ObjectInfo] = []
+        out: list[int] = []
         for dx, dy in _SENSE:
             ids = self._at.get((pos[0] + dx, pos[1] + dy))
             if ids:
-                sensed.extend(self.objects[i].spec for i in sorted(ids))
-        return Observation(agent_id, self.t, pos, tuple(sensed))
+                out.extend(sorted(ids))
+        return tuple(out)
 
     # ------------------------------------------------------------------ acting
 

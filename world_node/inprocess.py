@@ -29,7 +29,7 @@ def run_lockstep(
     scenario: Scenario,
     protocol: str,
     policy: CoordinationPolicy,
-    lookahead: int = 64,
+    lookahead: int = 1024,
     skipping: bool = True,
     kill: dict[int, int] | None = None,
     settings: Any = None,

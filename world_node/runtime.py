@@ -22,7 +22,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from ost_msgs_py.messages import Action, AgentLost, Observation
+from ost_msgs_py.messages import Action, AgentLost
 from ost_msgs_py.runtime import Acted, AgentReport, PlanStep, ProtocolViolation, RunEnd, Tick
 from ost_ros import protocols
 from ost_ros.coordination import Assignment, CoordinationPolicy
@@ -154,11 +154,19 @@ class WorldRuntime:
             actions = []
             for agent, plan in zip(live, plans):
                 step = plan[k]
-                if not _expected(self.world.observe(agent), step):
+                if not self._as_planned(agent, step):
                     return
                 actions.append(Action(agent, t, step.kind, step.direction, step.object, step.state))
             self._apply(actions)
             self.skipped += 1
+
+    def _as_planned(self, agent: int, step: PlanStep) -> bool:
+        """Whether the world's observation of ``agent`` is what its plan step expects: the
+        position always, the sensed objects when searching (read without building the
+        observation: the world checks every agent's plan at every skipped step)."""
+        if tuple(self.world.positions[agent]) != tuple(step.position):
+            return False
+        return not step.searching or self.world.sensed_ids(agent) == tuple(step.sensed)
 
     def _apply(self, actions: list[Action]) -> None:
         self.world.apply(actions)
@@ -233,9 +241,3 @@ class WorldRuntime:
         if not result.completed and result.error is None:
             result.error = f"not finished after {self.world.t} steps (deadlock or step limit)"
         return result
-
-
-def _expected(obs: Observation, step: PlanStep) -> bool:
-    if tuple(obs.position) != tuple(step.position):
-        return False
-    return not step.searching or tuple(o.id for o in obs.sensed) == tuple(step.sensed)
