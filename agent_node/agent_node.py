@@ -13,7 +13,8 @@ on ``/ost/agent_<id>/alive``: the world declares this robot failed once its proc
 gone that long) and ``die_at_step`` (fault injection: the process SIGKILLs itself on the first
 tick of that step or later; -1 = never), ``keys`` (the run's key directory, ``ost keys make``:
 every message it sends is signed with its own key and every one it receives checked; or
-``insecure`` true: none). The agent is built by its protocol's factory (the
+``insecure`` true: none), ``executor`` (``events`` or ``single``, as the world's). The agent
+is built by its protocol's factory (the
 registry) and runs unchanged: the node only orders its calls (:mod:`agent_node.runtime`) and
 moves messages.
 """

@@ -99,8 +99,7 @@ def world(n: int, rounds: int, pattern: str, executor: str, t0: float) -> None:
     for p in ticks:
         p.wait_for_all_acked(Duration(seconds=10))  # delivered before this process goes
     print(json.dumps({"bring_up": bring_up, "times": times}), flush=True)
-    node.destroy_node()
-    rclpy.try_shutdown()
+    os._exit(0)  # no teardown: rcl now and then hangs in destroy_node (agent_node/transport.py)
 
 
 def agent(i: int, n: int, pattern: str, executor: str) -> None:
@@ -138,7 +137,7 @@ def agent(i: int, n: int, pattern: str, executor: str) -> None:
         steps.pop(r, None)
         state["tick"] = None
 
-    node.create_subscription(String, f"floor/tick_{i}", on_tick, q)
+    tick_sub = node.create_subscription(String, f"floor/tick_{i}", on_tick, q)
     step = node.create_publisher(String, "floor/step", q)
     step_sub = node.create_subscription(String, "floor/step", on_step, q)
     spin = _spinner(node, executor)
@@ -152,10 +151,16 @@ def agent(i: int, n: int, pattern: str, executor: str) -> None:
     while not matched():
         spin(0.05)
     ready.publish(String(data=str(i)))
+    # Until the end marker, or the world gone for 2 s (its end marker lost with it).
+    gone_since = None
     while not state["done"]:
-        spin(1.0)
-    node.destroy_node()
-    rclpy.try_shutdown()
+        spin(0.5)
+        if tick_sub.get_publisher_count() == 0:
+            gone_since = gone_since or time.monotonic()
+            state["done"] = time.monotonic() - gone_since > 2.0
+        else:
+            gone_since = None
+    os._exit(0)  # as the world
 
 
 # ---------------------------------------------------------------------- the benchmark
@@ -191,8 +196,8 @@ def measure(n: int, rounds: int, pattern: str, executor: str) -> dict:
     )
     try:
         out, _ = w.communicate(timeout=600 + rounds * n * 0.05)
-        for p in procs:
-            p.wait(timeout=60)
+        for p in procs:  # the measurement is in; agents leave on the end marker
+            p.wait(timeout=30)
     finally:
         for p in [w, *procs]:
             if p.poll() is None:

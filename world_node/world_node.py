@@ -15,7 +15,8 @@ liveliness lease the world requests of every agent; an agent whose liveliness is
 not come back — and that sends nothing — for another such time is declared failed in the
 current step and the survivors re-coordinate; 0 = off), ``keys`` (the run's key directory,
 ``ost keys make``: the world signs what it sends with ``world.key`` and drops anything not
-signed by the robot it claims; the run id is the keys') or ``insecure`` (true: no signatures).
+signed by the robot it claims; the run id is the keys') or ``insecure`` (true: no signatures),
+``executor`` (``events``: rclpy's EventsExecutor, the default; ``single``: SingleThreadedExecutor).
 
 Topics are relative to the node's namespace (default ``/ost``): publishes ``clock`` (sim time:
 step t = t seconds), ``markers``, each agent's ``agent_<i>/tick`` (``ost_msgs/msg/Tick``),

@@ -130,8 +130,29 @@ def test_graph_and_malformed_messages(tmp_path, procs, domain):
 
 
 def test_bad_parameters_are_one_line(tmp_path, domain):
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text(dump_scenario(generate_scenario(2, 2, 1, Grid(20, 10), nmax=2)))
     for exe, args, text in [
         ("agent_node", ["-p", "agent_id:=0"], "scenario: must name a scenario file"),
+        (
+            "agent_node",
+            [
+                "-p",
+                "agent_id:=0",
+                "-p",
+                f"scenario:={scenario}",
+                "-p",
+                "insecure:=true",
+                "-p",
+                "executor:=threads",
+            ],
+            "executor: 'threads' is not one of events, single",
+        ),
+        (
+            "world_node",
+            ["-p", f"scenario:={scenario}", "-p", "insecure:=true", "-p", "executor:=threads"],
+            "executor: 'threads'",
+        ),
         ("agent_node", ["-p", "agent_id:=0", "-p", f"scenario:={tmp_path}/none.yaml"], "scenario:"),
         ("world_node", [], "scenario: must name a scenario file"),
         ("world_node", ["-p", "scenario:=x", "-p", "agents:=abc"], "error"),
