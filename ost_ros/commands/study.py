@@ -61,15 +61,7 @@ def register(sub) -> None:
         help="seeds A-B for Table 3's spread: CCP CI=1 and CI=M also run on their object sets "
         "(default: --seed and the 4 after it; quick: --seed alone)",
     )
-    p.add_argument(
-        "--jobs", type=at_least(1), default=os.cpu_count() or 1, help="worker processes (default: every core)"
-    )
-    p.add_argument(
-        "--progress",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="progress bar on stderr (default: when stderr is a terminal)",
-    )
+    add_workers(p)
 
     p = leaf(
         sub,
@@ -83,9 +75,14 @@ def register(sub) -> None:
     )
     p.add_argument("--out", required=True, help="output directory (created if needed)")
     p.add_argument(
-        "--quick", action="store_true", help="N in 10, 50 and M in 10, 50, 3 object sets (about a minute)"
+        "--quick", action="store_true", help="N in 10, 50 and M in 10, 50, 3 object sets (about 20 s)"
     )
     p.add_argument("--sets", type=at_least(2), help="object sets per (N, M) (default 10; quick 3)")
+    add_workers(p)
+
+
+def add_workers(p: argparse.ArgumentParser) -> None:
+    """``--jobs`` and ``--progress``, as every study verb takes them."""
     p.add_argument(
         "--jobs", type=at_least(1), default=os.cpu_count() or 1, help="worker processes (default: every core)"
     )
