@@ -37,6 +37,23 @@ def test_skipping_on_and_off_equal_simulate(protocol, n, m, seed, w, h, ci):
         assert w1.round_trips * 3 < w0.round_trips
 
 
+@pytest.mark.parametrize(
+    "protocol, ci, at_64, at_1024",
+    [("ccp", 1, 81, 63), ("hcp", None, 360, 360), ("ncp", 1, 109, 91)],
+)
+def test_skipping_keeps_its_recorded_round_trips(protocol, ci, at_64, at_1024):
+    """How much the world skips is the DDS run's cost: the counts recorded before the agents'
+    sensing prediction and the world's plan check were made cheaper (commit 11fdeb3, lookahead
+    64) must stay, and the default lookahead (1 024) may only need fewer."""
+    scenario = generate_scenario(10, 20, 1, Grid(100, 40))
+    policy = CoordinationPolicy(ci=ci) if ci else CoordinationPolicy()
+    expected = simulate(scenario, protocol, policy).to_dict()
+    for lookahead, trips in ((64, at_64), (1024, at_1024)):
+        result, world = run(scenario, protocol, policy, lookahead)
+        assert result.to_dict() == expected
+        assert world.round_trips == trips, (lookahead, world.round_trips)
+
+
 def test_out_of_turn_messages_are_refused():
     scenario = generate_scenario(2, 2, 1, Grid(12, 6), 2)
     ids = (0, 1)
