@@ -37,7 +37,7 @@ from std_msgs.msg import String
 from agent_node import transport as tp
 from agent_node.params import ParameterError
 from agent_node.params import declare as declare_param
-from agent_node.runtime import AgentRuntime, ProtocolViolation
+from agent_node.runtime import LOOKAHEAD, AgentRuntime, ProtocolViolation
 from ost_msgs_py import wire
 from ost_msgs_py.runtime import Acted, AgentReport, Ready, Resend, RunEnd, Sample, Tick
 from ost_ros import protocols
@@ -368,7 +368,7 @@ def declare(node: Node) -> None:
         "who runs Algorithm Coordination",
         constraints="distributed or coordinator",
     )
-    p("lookahead", 1024, "quiet steps planned ahead for event skipping (0: off)", 0, 100_000)
+    p("lookahead", LOOKAHEAD, "quiet steps planned ahead for event skipping (0: off)", 0, 100_000)
     p(
         "failure_timeout",
         tp.FAILURE_TIMEOUT_S,

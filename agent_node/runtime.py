@@ -39,7 +39,10 @@ from ost_ros import protocols
 from ost_ros.model import Cell
 from ost_ros.protocols.base import ProtocolAgent
 from ost_ros.protocols.plans import Plan, PlannedStep, unroll
+from ost_ros.protocols.shared.agent import PLAN_HORIZON
 
+# Quiet steps planned ahead by default: as far as the protocols' planners look.
+LOOKAHEAD = PLAN_HORIZON
 _SENSE = tuple((dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1))  # the world's sensing order
 
 # Messages of one step: sender -> seq -> message.

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from agent_node.runtime import AgentRuntime
+from agent_node.runtime import LOOKAHEAD, AgentRuntime
 from ost_msgs_py import wire as ros_wire
 from ost_msgs_py.runtime import Acted, AgentReport, Ready, RunEnd, RunInfo, Sample
 from ost_ros.coordination import CoordinationPolicy
@@ -29,7 +29,7 @@ def run_lockstep(
     scenario: Scenario,
     protocol: str,
     policy: CoordinationPolicy,
-    lookahead: int = 1024,
+    lookahead: int = LOOKAHEAD,
     skipping: bool = True,
     kill: dict[int, int] | None = None,
     settings: Any = None,
