@@ -175,8 +175,23 @@ def test_topics_echo_params_and_ros2_run_on_a_live_run(tmp_path, procs, domain):
     for field in ("run:", "step:", "seq:", "sender:", "object:", "location:", "x:", "required:"):
         assert field in text, text
 
-    # the world stays up with the result (exit_when_done false): a late reader still gets it
-    late = ros2(domain, "topic", "echo", "--once", "--full-length", "/ost/result", "std_msgs/msg/String")
+    # the world stays up with the result (exit_when_done false): a late reader still gets it. It
+    # asks for transient local itself: ros2 topic echo infers durability from the publishers its
+    # fresh node has discovered when it starts, often none yet, and then reads volatile (no result)
+    late = ros2(
+        domain,
+        "topic",
+        "echo",
+        "--once",
+        "--no-daemon",
+        "--full-length",
+        "--qos-durability",
+        "transient_local",
+        "--qos-reliability",
+        "reliable",
+        "/ost/result",
+        "std_msgs/msg/String",
+    )
     # the String's data is printed as a quoted YAML scalar: undo its escaped quotes
     assert f'"makespan": {expected["makespan"]}' in late.stdout.replace('\\"', '"'), late.stdout[:500]
 
