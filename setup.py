@@ -28,7 +28,7 @@ setup(
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/launch", ["launch/team.launch.py"]),
     ],
-    install_requires=["setuptools", "numpy", "PyYAML", "cryptography"],
+    install_requires=["setuptools", "numpy", "PyYAML", "cryptography", "PyNaCl"],
     python_requires=">=3.12",
     zip_safe=True,
     maintainer="OST project",

@@ -193,6 +193,7 @@ class NodeAuth:
     def __init__(self, signer: auth.Signer | None = None, verifier: auth.Verifier | None = None):
         self.signer = signer
         self.verifier = verifier
+        self._topics: dict[Any, str] = {}  # publisher -> its full topic name (a call into rcl)
 
     @property
     def secure(self) -> bool:
@@ -201,7 +202,10 @@ class NodeAuth:
     def publish(self, pub: Any, msg: Any) -> None:
         """Seal (sign, with a fresh counter) and publish."""
         if self.signer is not None:
-            self.signer.seal(msg, pub.topic_name)
+            topic = self._topics.get(pub)
+            if topic is None:
+                topic = self._topics[pub] = pub.topic_name
+            self.signer.seal(msg, topic)
         pub.publish(msg)
 
     def check(self, msg: Any, topic: str) -> str | None:

@@ -86,8 +86,10 @@ def main() -> int:
         )
         seal = per_message_us(lambda m, s=s: s.seal(m, "/ost/topic"), msgs, a.runs_of)
 
-        def check(m) -> None:
-            v = auth.Verifier(auth.Team("bench", keys))
+        v = auth.Verifier(auth.Team("bench", keys))
+
+        def check(m, v=v) -> None:
+            v.windows.clear()  # the same message again is not a replay here
             assert v.check(m, "/ost/topic") is None
 
         for m in msgs:

@@ -41,6 +41,8 @@ import yaml
 from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
+from nacl.exceptions import BadSignatureError
+from nacl.signing import SigningKey, VerifyKey
 
 WORLD = -1  # the world's signer id
 TEAM_FILE = "team.yaml"
@@ -265,6 +267,13 @@ class Signer:
         self.run = team.run
         self.signer = signer
         self.key = key
+        # Signed with libsodium (PyNaCl), as checked: the same deterministic Ed25519 signature,
+        # faster than through cryptography (Verifier).
+        self._sodium = SigningKey(
+            key.private_bytes(
+                serialization.Encoding.Raw, serialization.PrivateFormat.Raw, serialization.NoEncryption()
+            )
+        )
         # From the start time: a restarted process (a resumed world) counts on above its old
         # counters, which its peers have seen.
         self.counter = time.time_ns() if start is None else start
@@ -276,7 +285,7 @@ class Signer:
         auth.signer = self.signer
         auth.counter = self.counter
         data = signed_bytes(self.run, topic, msg, self.signer, self.counter)
-        auth.signature = array.array("B", self.key.sign(data))
+        auth.signature = array.array("B", self._sodium.sign(data).signature)
         return msg
 
 
@@ -309,6 +318,13 @@ class Verifier:
     def __init__(self, team: Team):
         self.run = team.run
         self.keys = team.keys
+        # Checked with libsodium (PyNaCl): the same Ed25519, about half the time of OpenSSL's
+        # through cryptography here (benchmarks/bench_auth.py) — every node checks every message
+        # it receives, so at N = 50 this is most of a round trip's CPU.
+        self.verify_keys = {
+            i: VerifyKey(k.public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw))
+            for i, k in team.keys.items()
+        }
         self.windows: dict[int, _Window] = {}
         self.dropped: Counter[str] = Counter()
 
@@ -329,13 +345,13 @@ class Verifier:
             return f"{FORGED}: names no sender"
         if auth.signer != claimed:
             return f"{FORGED}: signed by {signer_name(auth.signer)}, sent as {signer_name(claimed)}"
-        key = self.keys.get(auth.signer)
+        key = self.verify_keys.get(auth.signer)
         if key is None:
             return f"{FORGED}: {signer_name(auth.signer)} has no key in this run"
         try:
             data = signed_bytes(self.run, topic, msg, auth.signer, auth.counter)
-            key.verify(bytes(auth.signature), data)
-        except InvalidSignature:
+            key.verify(data, bytes(auth.signature))
+        except (InvalidSignature, BadSignatureError):
             return f"{FORGED}: the signature does not match (another key, run, topic or content)"
         except (TypeError, ValueError, OverflowError, struct.error) as exc:
             return f"{FORGED}: cannot be checked ({exc})"

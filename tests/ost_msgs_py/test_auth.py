@@ -127,3 +127,29 @@ def test_bad_key_material_is_one_line(tmp_path, keys):
     (tmp_path / "agent_0.key").chmod(0o600)
     with pytest.raises(auth.AuthError, match=r"agent_0\.key: not a PEM private key"):
         auth.load_private(tmp_path, 0)
+
+
+def test_signatures_are_plain_ed25519_whichever_library_makes_or_checks_them(keys):
+    """Sealing and checking go through libsodium (PyNaCl) for speed; the signature is the same
+    deterministic Ed25519 one OpenSSL (cryptography) makes, and either one's checks the other's."""
+    team = auth.load_team(keys)
+    key = auth.load_private(keys, 0)
+    m = signer(keys, 0).seal(selection(), "/ost/selection")
+    data = auth.signed_bytes(team.run, "/ost/selection", m, 0, m.auth.counter)
+    assert bytes(m.auth.signature) == key.sign(data)
+    team.keys[0].verify(bytes(m.auth.signature), data)  # OpenSSL accepts libsodium's
+    other = selection()
+    other.auth.signer, other.auth.counter = 0, m.auth.counter + 1
+    other_data = auth.signed_bytes(team.run, "/ost/selection", other, 0, other.auth.counter)
+    other.auth.signature = array.array("B", key.sign(other_data))
+    assert auth.Verifier(team).check(other, "/ost/selection") is None  # libsodium accepts OpenSSL's
+    bad = array.array("B", bytes(other.auth.signature))
+    bad[0] ^= 1
+    other.auth.signature = bad
+    assert auth.Verifier(team).check(other, "/ost/selection").startswith("forged: the signature")
+
+
+def test_a_signature_of_the_wrong_length_is_forged(keys):
+    m = signer(keys, 0).seal(selection(), "/ost/selection")
+    m.auth.signature = array.array("B", bytes(m.auth.signature)[:10])
+    assert auth.Verifier(auth.load_team(keys)).check(m, "/ost/selection").startswith("forged: ")
