@@ -195,6 +195,7 @@ class AgentRunner:
         if not isinstance(lease, (int, float)) or lease < 0:
             raise ParameterError(f"failure_timeout: {lease!r} must be a non-negative number of seconds")
         self.pub_alive = node.create_publisher(String, tp.alive_topic(me), tp.alive_qos(float(lease)))
+        self.alive_readers = 0  # readers matched on the alive topic when last looked
         self.die_at = node.get_parameter("die_at_step").value
         self.timer = node.create_timer(0.1, self.on_timer)
 
@@ -221,13 +222,18 @@ class AgentRunner:
         if not self.ready_sent:
             if self.matched():
                 # One sample asserts this robot's liveliness at once (the world waits for it)
-                self.pub_alive.publish(String(data=f"agent {self.rt.me}"))
+                self.say_alive()
                 ready = Ready(self.rt.me, self.protocol, self.fingerprint, self.organisation)
                 self.guard.publish(self.pub_ready, wire.to_ros(ready))
                 self.ready_sent = True
                 self.world_seen = True
                 self.node.get_logger().info(f"ready: {self.n} agents and the world matched")
             return
+        if self.pub_alive.get_subscription_count() > self.alive_readers:
+            # A reader came since (a restarted world): it has not seen the sample, and the
+            # liveliness-changed event alone does not always fire for it.
+            self.say_alive()
+        self.alive_readers = self.pub_alive.get_subscription_count()
         # The world gone for good: stop instead of waiting forever.
         now = self.node.get_clock().now().nanoseconds * 1e-9
         held = self.rt.held()
@@ -254,6 +260,11 @@ class AgentRunner:
                 self.exit_code, self.done = 1, True
         else:
             self.world_lost_since = None
+
+    def say_alive(self) -> None:
+        """One sample on the alive topic: the world starts (or resumes) on it."""
+        self.alive_readers = self.pub_alive.get_subscription_count()
+        self.pub_alive.publish(String(data=f"agent {self.rt.me}"))
 
     # ------------------------------------------------------------------ traffic
 
