@@ -229,11 +229,12 @@ class AgentRunner:
                 self.world_seen = True
                 self.node.get_logger().info(f"ready: {self.n} agents and the world matched")
             return
-        if self.pub_alive.get_subscription_count() > self.alive_readers:
+        readers = self.pub_alive.get_subscription_count()
+        if readers > self.alive_readers:
             # A reader came since (a restarted world): it has not seen the sample, and the
             # liveliness-changed event alone does not always fire for it.
             self.say_alive()
-        self.alive_readers = self.pub_alive.get_subscription_count()
+        self.alive_readers = readers  # also when one is gone: its successor counts as new
         # The world gone for good: stop instead of waiting forever.
         now = self.node.get_clock().now().nanoseconds * 1e-9
         held = self.rt.held()
@@ -262,7 +263,8 @@ class AgentRunner:
             self.world_lost_since = None
 
     def say_alive(self) -> None:
-        """One sample on the alive topic: the world starts (or resumes) on it."""
+        """One sample on the alive topic, to every reader matched now: the world starts (or
+        resumes) on it."""
         self.alive_readers = self.pub_alive.get_subscription_count()
         self.pub_alive.publish(String(data=f"agent {self.rt.me}"))
 
