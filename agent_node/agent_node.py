@@ -26,12 +26,15 @@ import functools
 import os
 import signal
 import sys
+import time
 
 import rclpy
 import yaml
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.subscription import Subscription
 from std_msgs.msg import String
 
 from agent_node import transport as tp
@@ -144,6 +147,7 @@ class AgentRunner:
         self.world_lost_since: float | None = None
         self.held_since: float | None = None
         self.throttle = tp.Throttle(node.get_logger())
+        self.created = time.monotonic()  # for saying what discovery lacks when it takes long
         me = runtime.me
         self.guard = tp.node_auth(node.get_parameter("keys").value, node.get_parameter("insecure").value, me)
         # Peers' samples as received (signed by them): what this agent relays for a peer that a
@@ -203,24 +207,37 @@ class AgentRunner:
 
     def matched(self) -> bool:
         """Every endpoint this agent needs is matched (counted, never waited for by sleeping)."""
+        return not self.unmatched()
+
+    def unmatched(self) -> list[str]:
+        """What discovery still lacks, as ``topic matched/needed`` (empty: ready)."""
         k = self.observers
-        return (
-            self.pub_acted.get_subscription_count() >= 1 + k
-            and self.pub_ready.get_subscription_count() >= 1 + k
-            and self.pub_report.get_subscription_count() >= 1 + k
-            and self.sub_tick.get_publisher_count() >= 1
-            and self.sub_end.get_publisher_count() >= 1
+        counts: list[tuple[Publisher | Subscription, int, int]] = [
+            (self.pub_acted, self.pub_acted.get_subscription_count(), 1 + k),
+            (self.pub_ready, self.pub_ready.get_subscription_count(), 1 + k),
+            (self.pub_report, self.pub_report.get_subscription_count(), 1 + k),
+            (self.sub_tick, self.sub_tick.get_publisher_count(), 1),
+            (self.sub_end, self.sub_end.get_publisher_count(), 1),
             # its one sample must reach the world, not only an observer that matched first
-            and self.pub_alive.get_subscription_count() >= 1 + k
-            and self.pub_resend.get_subscription_count() >= self.n + k
-            and all(pub.get_subscription_count() >= self.n + k for pub in self.kind_pubs.values())
-            and all(sub.get_publisher_count() >= self.n for sub in self.kind_subs)
-        )
+            (self.pub_alive, self.pub_alive.get_subscription_count(), 1 + k),
+            (self.pub_resend, self.pub_resend.get_subscription_count(), self.n + k),
+            *((pub, pub.get_subscription_count(), self.n + k) for pub in self.kind_pubs.values()),
+            *((sub, sub.get_publisher_count(), self.n) for sub in self.kind_subs),
+        ]
+        return [
+            f"{'readers' if isinstance(e, Publisher) else 'writers'} of {e.topic_name} {have}/{need}"
+            for e, have, need in counts
+            if have < need
+        ]
 
     def on_timer(self) -> None:
         self.leave_if_reported()
         if not self.ready_sent:
-            if self.matched():
+            lacking = self.unmatched()
+            now = time.monotonic()
+            if lacking and now - self.created > tp.DISCOVERY_NOTE_S:  # say what discovery lacks
+                self.throttle.note(("start", "agent"), f"not ready yet: {', '.join(lacking[:6])}")
+            if not lacking:
                 # One sample asserts this robot's liveliness at once (the world waits for it)
                 self.say_alive()
                 ready = Ready(self.rt.me, self.protocol, self.fingerprint, self.organisation)

@@ -25,9 +25,10 @@ from typing import Any
 
 from ost_msgs_py.messages import Action, AgentLost, AgentMessage, ObjectInfo, Observation
 from ost_msgs_py.runtime import (
+    PLAN_CODE,
     Acted,
     AgentReport,
-    PlanStep,
+    PlanColumns,
     ProtocolViolation,
     Resend,
     RunEnd,
@@ -61,7 +62,7 @@ class AgentRuntime:
     _end: RunEnd | None = None
     _inbox: dict[int, StepInbox] = field(default_factory=dict)  # step -> what peers sent
     _own: list[AgentMessage] = field(default_factory=list)
-    _plan: tuple[PlanStep, ...] = ()
+    _plan: PlanColumns | tuple[()] = ()
     _known: dict[int, ObjectInfo] = field(default_factory=dict)
     _horizon: int = 8  # current planning depth, adapted to what the world skips
     # Recovery from a lost sample: what was published for the last step, to publish again.
@@ -228,11 +229,11 @@ class AgentRuntime:
         # Plan about twice as far as the world last skipped: long quiet stretches get long plans,
         # busy phases (every plan cut short by someone's message) cost little planning.
         self._horizon = max(8, min(self.lookahead, 2 * (until - self.last - 1)))
+        plan = PlanColumns.of(self._plan)
         for k, s in enumerate(range(self.last + 1, until)):
-            step = self._plan[k]
-            obs = Observation(self.me, s, step.position, tuple(self._known[i] for i in step.sensed))
-            action = self.agent.act(obs)
-            if self.agent.outbox() or not _same_action(action, step):
+            sensed = tuple(self._known[i] for i in plan.sensed_at(k))
+            action = self.agent.act(Observation(self.me, s, plan.position(k), sensed))
+            if self.agent.outbox() or not plan.same_action(k, action):
                 raise ProtocolViolation(f"replaying step {s}: the agent deviated from its plan")
             self.agent.communicate(s, [])
         self._own = []
@@ -282,23 +283,44 @@ class AgentRuntime:
 
     # ------------------------------------------------------------------ event skipping
 
-    def _plan_steps(self, plan: Plan, obs: Observation, action: Action) -> tuple[PlanStep, ...]:
+    def _plan_steps(self, plan: Plan, obs: Observation, action: Action) -> PlanColumns | tuple[()]:
         """The steps after ``obs.t`` of the agent's plan (made before it acted in ``obs.t``), each
         with the observation it expects (the world checks it); cut where the agent would sense
-        an object it reacts to."""
+        an object it reacts to. Built as the columns it travels in (no object per step)."""
         steps = unroll(plan, obs.t, obs.position, 1 + min(self.lookahead, self._horizon))
         if not steps or not _same_action(action, steps[0]):
             return ()  # the plan does not start with what it did (never, if plans are right)
         where = self._known_by_cell(self.agent.departures())
-        out = []
+        x: list[int] = []
+        y: list[int] = []
+        searching: list[bool] = []
+        count: list[int] = []
+        ids: list[int] = []
+        kind: list[int] = []
+        dx: list[int] = []
+        dy: list[int] = []
+        obj: list[int] = []
+        state: list[str] = []
         for st in steps[1:]:
             sensed = _predict_sensed(where, st.position, st.t) if st.reads_sensor else ()
             if any(self.agent.news(self._known[i]) for i in sensed):
                 break
-            out.append(
-                PlanStep(st.position, st.reads_sensor, sensed, st.kind, st.direction, st.object, st.state)
-            )
-        return tuple(out)
+            x.append(st.position[0])
+            y.append(st.position[1])
+            searching.append(st.reads_sensor)
+            count.append(len(sensed))
+            ids.extend(sensed)
+            kind.append(PLAN_CODE[st.kind])
+            dx.append(st.direction[0])
+            dy.append(st.direction[1])
+            obj.append(st.object)
+            state.append(st.state)
+        if not x:
+            return ()
+        return PlanColumns(
+            x=x, y=y, searching=searching, sensed_count=count, sensed=ids,
+            kind=kind, dx=dx, dy=dy, object=obj, state=state,
+        )  # fmt: skip
 
     def _known_by_cell(self, departures: Mapping[int, int]) -> dict[Cell, list[tuple[int, int | None]]]:
         """Known objects by the cell they were found in, each with the step its carry starts
@@ -344,7 +366,7 @@ def _predict_sensed(
     return tuple(out)
 
 
-def _same_action(action: Action, step: PlanStep | PlannedStep) -> bool:
+def _same_action(action: Action, step: PlannedStep) -> bool:
     return (
         action.kind is step.kind
         and tuple(action.direction) == tuple(step.direction)

@@ -70,6 +70,9 @@ def alive_topic(agent_id: int) -> str:
 # Liveliness lease (s): an agent whose liveliness is lost for it and then for as long again (with
 # nothing heard from it) is declared failed by the world: detection in about 2 leases.
 FAILURE_TIMEOUT_S = 1.0
+# Discovery taking longer than this is reported (what a node still lacks): 50 agents on two
+# cores take 20-40 s to match; a node still unmatched after a minute is stuck.
+DISCOVERY_NOTE_S = 60.0
 
 
 def alive_qos(lease_s: float) -> QoSProfile:

@@ -25,6 +25,7 @@ generated ``ost_msgs`` classes).
 from __future__ import annotations
 
 import array
+import functools
 import os
 import secrets
 import stat
@@ -180,8 +181,22 @@ def _text(value: str, out: bytearray) -> None:
     out += data
 
 
+@functools.lru_cache(maxsize=4096)
+def _text_bytes(value: str) -> bytes:
+    data = value.encode("utf-8", "surrogatepass")
+    return _LEN.pack(len(data)) + data
+
+
+def _texts(v: Any, out: bytearray) -> None:
+    # A plan's states repeat (a few distinct strings in 1 024 steps): each encoded once.
+    out += _LEN.pack(len(v))
+    out += b"".join(map(_text_bytes, v))
+
+
 def _field(field_type: str) -> Encode:
     """How one field of the given ROS type goes into the signed bytes."""
+    if field_type == "sequence<string>":
+        return _texts
     if field_type in _SCALARS:
         s = struct.Struct("<" + _SCALARS[field_type])
         return lambda v, out: out.extend(s.pack(v))

@@ -27,8 +27,12 @@ stray publisher, a leftover node of an earlier run — is dropped with a warning
 
 from __future__ import annotations
 
+import array
+import builtins
+import itertools
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar, overload
 
 from ost_msgs_py.messages import (
     Action,
@@ -101,6 +105,159 @@ class PlanStep:
     state: str
 
 
+# ost_msgs/Plan's kind codes: WAIT=0, MOVE=1, CARRY=2
+PLAN_KINDS = (ActionKind.WAIT, ActionKind.MOVE, ActionKind.CARRY)
+PLAN_CODE = {k: n for n, k in enumerate(PLAN_KINDS)}
+
+
+class PlanColumns(Sequence[PlanStep]):
+    """A plan as parallel columns, as it travels (``ost_msgs/Plan``); a step is built only when
+    it is read. The world reads each agent's plan only as far as it skips — at most the shortest
+    plan of the team, often a small part of a 1 024-step one — so it never builds the rest.
+    Equal to any sequence of the same :class:`PlanStep` s."""
+
+    COLUMNS = ("x", "y", "searching", "sensed_count", "sensed", "kind", "dx", "dy", "object", "state")
+    # array codes of the columns (searching and state are tuples)
+    _CODES: ClassVar[dict[str, str]] = {
+        "x": "i",
+        "y": "i",
+        "sensed_count": "H",
+        "sensed": "i",
+        "kind": "B",
+        "dx": "b",
+        "dy": "b",
+        "object": "i",
+    }
+    __slots__ = (*COLUMNS, "_starts")
+
+    x: array.array
+    y: array.array
+    searching: tuple[bool, ...]
+    sensed_count: array.array
+    sensed: array.array
+    kind: array.array
+    dx: array.array
+    dy: array.array
+    object: array.array
+    state: tuple[str, ...]
+    _starts: tuple[int, ...] | None
+
+    def __init__(self, **columns: Iterable[Any]) -> None:
+        for name in self.COLUMNS:
+            value = columns[name]
+            code = self._CODES.get(name)
+            if code is None:
+                value = tuple(map(bool, value)) if name == "searching" else tuple(value)
+            elif not (isinstance(value, array.array) and value.typecode == code):
+                value = array.array(code, value)
+            object.__setattr__(self, name, value)
+        n = len(self.x)
+        short = [name for name in self.COLUMNS if name != "sensed" and len(getattr(self, name)) != n]
+        if short:
+            raise ValueError(f"plan column {short[0]} has {len(getattr(self, short[0]))} entries, x has {n}")
+        if sum(self.sensed_count) != len(self.sensed):
+            raise ValueError(
+                f"plan: {len(self.sensed)} sensed ids, sensed_count says {sum(self.sensed_count)}"
+            )
+        if max(self.kind, default=0) >= len(PLAN_KINDS):
+            raise ValueError("plan: a kind code is not 0 (wait), 1 (move) or 2 (carry)")
+        object.__setattr__(self, "_starts", None)
+
+    @classmethod
+    def of(cls, steps: Iterable[PlanStep]) -> PlanColumns:
+        if isinstance(steps, PlanColumns):
+            return steps
+        steps = tuple(steps)
+        return cls(
+            x=[p.position[0] for p in steps],
+            y=[p.position[1] for p in steps],
+            searching=[p.searching for p in steps],
+            sensed_count=[len(p.sensed) for p in steps],
+            sensed=[i for p in steps for i in p.sensed],
+            kind=[PLAN_CODE[p.kind] for p in steps],
+            dx=[p.direction[0] for p in steps],
+            dy=[p.direction[1] for p in steps],
+            object=[p.object for p in steps],
+            state=[p.state for p in steps],
+        )
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError("a plan is immutable")
+
+    def __len__(self) -> int:
+        return len(self.x)
+
+    @overload
+    def __getitem__(self, k: int) -> PlanStep: ...
+    @overload
+    def __getitem__(self, k: slice) -> tuple[PlanStep, ...]: ...
+    def __getitem__(self, k: int | slice) -> PlanStep | tuple[PlanStep, ...]:
+        if isinstance(k, slice):
+            return tuple(self[i] for i in range(*k.indices(len(self))))
+        if k < 0:
+            k += len(self)
+        return PlanStep(
+            (self.x[k], self.y[k]),
+            self.searching[k],
+            self.sensed_at(k),
+            PLAN_KINDS[self.kind[k]],
+            (self.dx[k], self.dy[k]),
+            self.object[k],
+            self.state[k],
+        )
+
+    # Step k read column by column, without building its PlanStep (the world checks every
+    # agent's plan at every step it skips; the agent replays its own).
+
+    def position(self, k: int) -> Cell:
+        return (self.x[k], self.y[k])
+
+    def sensed_at(self, k: int) -> tuple[int, ...]:
+        starts = self._starts
+        if starts is None:  # where each step's sensed ids begin: once, when first read
+            starts = (0, *itertools.accumulate(self.sensed_count))
+            object.__setattr__(self, "_starts", starts)
+        return tuple(self.sensed[starts[k] : starts[k + 1]])
+
+    def action(self, agent: int, t: int, k: int) -> Action:
+        """Step k's action, as ``agent`` takes it in step ``t``."""
+        return Action(
+            agent, t, PLAN_KINDS[self.kind[k]], (self.dx[k], self.dy[k]), self.object[k], self.state[k]
+        )
+
+    def same_action(self, k: int, action: Action) -> bool:
+        """Whether ``action`` is step k's (whoever took it, whenever)."""
+        return (
+            action.kind is PLAN_KINDS[self.kind[k]]
+            and tuple(action.direction) == (self.dx[k], self.dy[k])
+            and action.object == self.object[k]
+            and action.state == self.state[k]
+        )
+
+    def _columns(self) -> tuple[Any, ...]:
+        return tuple(getattr(self, name) for name in self.COLUMNS)
+
+    def __eq__(self, other: builtins.object) -> bool:
+        if isinstance(other, PlanColumns):
+            return self._columns() == other._columns()
+        if isinstance(other, Sequence) and not isinstance(other, str):
+            return len(self) == len(other) and all(a == b for a, b in zip(self, other))
+        return NotImplemented
+
+    def __hash__(self) -> int:
+        return hash(tuple(self))  # as the tuple of its steps (equal objects, equal hashes)
+
+    def __repr__(self) -> str:
+        return f"PlanColumns({len(self)} steps)"
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return _plan_columns, self._columns()
+
+
+def _plan_columns(*columns: Any) -> PlanColumns:
+    return PlanColumns(**dict(zip(PlanColumns.COLUMNS, columns)))
+
+
 @dataclass(frozen=True)
 class Acted:
     """Agent → world: the action of step ``action.t``.
@@ -113,7 +270,7 @@ class Acted:
     TYPE: ClassVar[str] = "acted"
     action: Action
     sent: int
-    plan: tuple[PlanStep, ...] = ()
+    plan: Sequence[PlanStep] = ()  # a tuple, or PlanColumns as it comes off the wire
     run: str = ""  # the world's run id (strays of other runs are dropped)
     version: int = RUNTIME_VERSION
 

@@ -8,9 +8,10 @@ classes' field types, so a new message needs its ``.msg`` file and its dataclass
 Field mapping: ``int``/``str``/``bool`` as they are; ``str`` enums as their value (checked on the
 way in); a cell ``tuple[int, int]`` as ``ost_msgs/Cell``; other fixed tuples positionally onto a
 message (``found``: ``ost_msgs/FoundObject``); ``tuple[T, ...]`` as a sequence; nested dataclasses
-as nested messages; ``int | None`` as ``-1`` for None; a plan (``tuple[PlanStep, ...]``) as
+as nested messages; ``int | None`` as ``-1`` for None; a plan (a sequence of ``PlanStep``) as
 ``ost_msgs/Plan``, parallel arrays (a 64-step plan would otherwise be 64 messages and 128 cells
-to build and take apart on every action). The dataclasses' ``version`` is the
+to build and take apart on every action), decoded as :class:`~ost_msgs_py.runtime.PlanColumns`
+(steps built only where read). The dataclasses' ``version`` is the
 interface itself (its type hash), so it is not a field on the wire.
 
 A protocol message travels as a :class:`~ost_msgs_py.runtime.Sample`: the message's fields plus
@@ -27,7 +28,7 @@ import dataclasses
 import enum
 import types
 import typing
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import ost_msgs.msg as ros
@@ -35,8 +36,7 @@ import ost_msgs.msg as ros
 from ost_msgs_py import auth
 from ost_msgs_py import messages as _messages
 from ost_msgs_py import runtime as _runtime
-from ost_msgs_py.messages import ActionKind
-from ost_msgs_py.runtime import PlanStep, Sample
+from ost_msgs_py.runtime import PLAN_KINDS, PlanColumns, PlanStep, Sample
 
 
 class MessageError(ValueError):
@@ -150,27 +150,26 @@ def _enum(hint: type[enum.Enum]) -> tuple[ToRos, FromRos]:
     return (lambda v: v.value), from_enum
 
 
-_KINDS = (ActionKind.WAIT, ActionKind.MOVE, ActionKind.CARRY)  # Plan's WAIT=0, MOVE=1, CARRY=2
-_KIND_CODE = {k: n for n, k in enumerate(_KINDS)}
-
-
-def _plan_to_ros(plan: tuple[PlanStep, ...]) -> Any:
+def _plan_to_ros(plan: Sequence[PlanStep]) -> Any:
     """A plan as ``ost_msgs/Plan``: parallel arrays, no message object per step."""
+    p = PlanColumns.of(plan)
     return ros.Plan(
-        x=array.array("i", [p.position[0] for p in plan]),
-        y=array.array("i", [p.position[1] for p in plan]),
-        searching=[p.searching for p in plan],
-        sensed_count=array.array("H", [len(p.sensed) for p in plan]),
-        sensed=array.array("i", [i for p in plan for i in p.sensed]),
-        kind=array.array("B", [_KIND_CODE[p.kind] for p in plan]),
-        dx=array.array("b", [p.direction[0] for p in plan]),
-        dy=array.array("b", [p.direction[1] for p in plan]),
-        object=array.array("i", [p.object for p in plan]),
-        state=[p.state for p in plan],
+        x=p.x,
+        y=p.y,
+        searching=list(p.searching),
+        sensed_count=p.sensed_count,
+        sensed=p.sensed,
+        kind=p.kind,
+        dx=p.dx,
+        dy=p.dy,
+        object=p.object,
+        state=list(p.state),
     )
 
 
-def _plan_from_ros(msg: Any, where: str) -> tuple[PlanStep, ...]:
+def _plan_from_ros(msg: Any, where: str) -> PlanColumns:
+    """The columns as they came (checked here, so the error names the field); steps are built
+    only where read (:class:`PlanColumns`): the world reads a plan only as far as it skips."""
     n = len(msg.x)
     columns = ("y", "searching", "sensed_count", "kind", "dx", "dy", "object", "state")
     for name in columns:
@@ -180,25 +179,12 @@ def _plan_from_ros(msg: Any, where: str) -> tuple[PlanStep, ...]:
         raise MessageError(
             f"{where}.sensed: {len(msg.sensed)} ids, sensed_count says {sum(msg.sensed_count)}"
         )
-    bad = next((i for i, code in enumerate(msg.kind) if code >= len(_KINDS)), None)
-    if bad is not None:
+    if max(msg.kind, default=0) >= len(PLAN_KINDS):
+        bad = next(i for i, code in enumerate(msg.kind) if code >= len(PLAN_KINDS))
         raise MessageError(
             f"{where}.kind[{bad}]: {msg.kind[bad]} is not one of 0 (wait), 1 (move), 2 (carry)"
         )
-    # Column by column (zip), not index by index: the world decodes every agent's plan each
-    # round trip, up to the lookahead's length.
-    sensed_ids = list(msg.sensed)
-    out, k = [], 0
-    for x, y, searching, c, code, dx, dy, obj, state in zip(
-        msg.x, msg.y, msg.searching, msg.sensed_count, msg.kind, msg.dx, msg.dy, msg.object, msg.state
-    ):
-        out.append(
-            PlanStep(
-                (x, y), bool(searching), tuple(sensed_ids[k : k + c]), _KINDS[code], (dx, dy), obj, state
-            )
-        )
-        k += c
-    return tuple(out)
+    return PlanColumns(**{name: getattr(msg, name) for name in PlanColumns.COLUMNS})
 
 
 @dataclasses.dataclass

@@ -254,6 +254,13 @@ class CoordinationPolicy:
             return int(searched_now / f + 1e-9) > int(searched_before / f + 1e-9)
         return unscheduled >= self.ci
 
+    def due_in(self, t: int, unscheduled: int, team: TeamInfo) -> bool:
+        """:meth:`due` with the team's searched fractions, computed only for the area trigger
+        (a comm module asks in every step; the other triggers never read them)."""
+        if self.area_fraction is None or self.interval is not None or unscheduled == 0:
+            return self.due(t, unscheduled, 0.0, 0.0)
+        return self.due(t, unscheduled, team.searched_fraction(t - 1), team.searched_fraction(t))
+
     def next_due(self, t: int, unscheduled: int, team: TeamInfo) -> int | None:
         """The first step s >= t at which :meth:`due` holds while nothing new is found (None:
         never) — the step a comm module next coordinates on its own."""
@@ -272,6 +279,6 @@ class CoordinationPolicy:
         # a superset (loose tolerance); the exact test decides
         for s in ts[np.floor(now / f + 1e-6) > np.floor(before / f - 1e-6)]:
             s = int(s)
-            if self.due(s, unscheduled, team.searched_fraction(s - 1), team.searched_fraction(s)):
+            if self.due_in(s, unscheduled, team):
                 return s
         return None

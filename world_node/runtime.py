@@ -19,11 +19,11 @@ over: the notice is news to the agents, like a broadcast.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from ost_msgs_py.messages import Action, AgentLost
-from ost_msgs_py.runtime import Acted, AgentReport, PlanStep, ProtocolViolation, RunEnd, Tick
+from ost_msgs_py.runtime import Acted, AgentReport, PlanColumns, PlanStep, ProtocolViolation, RunEnd, Tick
 from ost_ros import protocols
 from ost_ros.coordination import Assignment, CoordinationPolicy
 from ost_ros.engines import step_limit
@@ -146,27 +146,28 @@ class WorldRuntime:
             self._skip(live, [x.plan for x in acted])
         return self._next(last, sent)
 
-    def _skip(self, live: tuple[int, ...], plans: list[tuple[PlanStep, ...]]) -> None:
-        for k in range(min(len(p) for p in plans)):
+    def _skip(self, live: tuple[int, ...], plans: list[Sequence[PlanStep]]) -> None:
+        columns = [PlanColumns.of(p) for p in plans]  # as they came off the wire: no copy
+        for k in range(min(len(c) for c in columns)):
             if self.world.done or self.world.t >= self.limit:
                 return
             t = self.world.t
             actions = []
-            for agent, plan in zip(live, plans):
-                step = plan[k]
-                if not self._as_planned(agent, step):
+            for agent, plan in zip(live, columns):
+                if not self._as_planned(agent, plan, k):
                     return
-                actions.append(Action(agent, t, step.kind, step.direction, step.object, step.state))
+                actions.append(plan.action(agent, t, k))
             self._apply(actions)
             self.skipped += 1
 
-    def _as_planned(self, agent: int, step: PlanStep) -> bool:
-        """Whether the world's observation of ``agent`` is what its plan step expects: the
+    def _as_planned(self, agent: int, plan: PlanColumns, k: int) -> bool:
+        """Whether the world's observation of ``agent`` is what step k of its plan expects: the
         position always, the sensed objects when searching (read without building the
         observation: the world checks every agent's plan at every skipped step)."""
-        if tuple(self.world.positions[agent]) != tuple(step.position):
+        pos = self.world.positions[agent]
+        if pos[0] != plan.x[k] or pos[1] != plan.y[k]:
             return False
-        return not step.searching or self.world.sensed_ids(agent) == tuple(step.sensed)
+        return not plan.searching[k] or self.world.sensed_ids(agent) == plan.sensed_at(k)
 
     def _apply(self, actions: list[Action]) -> None:
         self.world.apply(actions)

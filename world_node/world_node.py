@@ -284,7 +284,17 @@ class WorldNode(Node):
         self.try_start()
 
     def try_start(self) -> None:
-        if self.started or (len(self.ready) < len(self.ids) and not self.resumed):
+        if self.started:
+            return
+        if len(self.ready) < len(self.ids) and not self.resumed:
+            if time.monotonic() - self.stall_since > tp.DISCOVERY_NOTE_S:  # say who is not ready
+                waiting = [i for i in self.ids if i not in self.ready]
+                self.throttle.note(
+                    ("start", "world"),
+                    f"not starting yet: no ready from agents {waiting[:8]}"
+                    + (f" and {len(waiting) - 8} more" if len(waiting) > 8 else "")
+                    + " (each says what its discovery lacks in its log)",
+                )
             return
         ticks = [i for i in self.rt.live if self.pub_tick[i].get_subscription_count() < 1 + self.observers]
         writers = self.sub_acted.get_publisher_count()

@@ -97,9 +97,7 @@ class CcpComm(Recovery, QueuedMessages):
             elif not self.closing:
                 self.state = CommState.CLOSED
                 k.predicted_makespan = k.predict_makespan(t, self.alive)
-        elif self.policy.due(
-            t, len(k.unscheduled), self.team.searched_fraction(t - 1), self.team.searched_fraction(t)
-        ):
+        elif self.policy.due_in(t, len(k.unscheduled), self.team):
             self._coordinate(t)
 
     def _take(self, t: int, msg: AgentMessage) -> None:

@@ -99,12 +99,7 @@ class NcpComm(Recovery, QueuedMessages):
             self._negotiate(t, moves)
         if self.negotiation is None:
             all_searched = self.all_searched
-            if k.unscheduled and (
-                all_searched
-                or self.policy.due(
-                    t, len(k.unscheduled), self.team.searched_fraction(t - 1), self.team.searched_fraction(t)
-                )
-            ):
+            if k.unscheduled and (all_searched or self.policy.due_in(t, len(k.unscheduled), self.team)):
                 self._open(t)
             elif all_searched and not k.unscheduled:
                 self.state = NcpState.CLOSED
