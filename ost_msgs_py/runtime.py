@@ -151,16 +151,16 @@ class PlanColumns(Sequence[PlanStep]):
             elif not (isinstance(value, array.array) and value.typecode == code):
                 value = array.array(code, value)
             object.__setattr__(self, name, value)
+        # Each error names its column (the wire puts the message's field path before it).
         n = len(self.x)
-        short = [name for name in self.COLUMNS if name != "sensed" and len(getattr(self, name)) != n]
-        if short:
-            raise ValueError(f"plan column {short[0]} has {len(getattr(self, short[0]))} entries, x has {n}")
+        for name in self.COLUMNS:
+            if name != "sensed" and len(getattr(self, name)) != n:
+                raise ValueError(f"{name}: {len(getattr(self, name))} entries, x has {n}")
         if sum(self.sensed_count) != len(self.sensed):
-            raise ValueError(
-                f"plan: {len(self.sensed)} sensed ids, sensed_count says {sum(self.sensed_count)}"
-            )
+            raise ValueError(f"sensed: {len(self.sensed)} ids, sensed_count says {sum(self.sensed_count)}")
         if max(self.kind, default=0) >= len(PLAN_KINDS):
-            raise ValueError("plan: a kind code is not 0 (wait), 1 (move) or 2 (carry)")
+            bad = next(i for i, code in enumerate(self.kind) if code >= len(PLAN_KINDS))
+            raise ValueError(f"kind[{bad}]: {self.kind[bad]} is not one of 0 (wait), 1 (move), 2 (carry)")
         object.__setattr__(self, "_starts", None)
 
     @classmethod

@@ -36,7 +36,7 @@ import ost_msgs.msg as ros
 from ost_msgs_py import auth
 from ost_msgs_py import messages as _messages
 from ost_msgs_py import runtime as _runtime
-from ost_msgs_py.runtime import PLAN_KINDS, PlanColumns, PlanStep, Sample
+from ost_msgs_py.runtime import PlanColumns, PlanStep, Sample
 
 
 class MessageError(ValueError):
@@ -151,40 +151,18 @@ def _enum(hint: type[enum.Enum]) -> tuple[ToRos, FromRos]:
 
 
 def _plan_to_ros(plan: Sequence[PlanStep]) -> Any:
-    """A plan as ``ost_msgs/Plan``: parallel arrays, no message object per step."""
+    """A plan as ``ost_msgs/Plan``: its columns, no message object per step."""
     p = PlanColumns.of(plan)
-    return ros.Plan(
-        x=p.x,
-        y=p.y,
-        searching=list(p.searching),
-        sensed_count=p.sensed_count,
-        sensed=p.sensed,
-        kind=p.kind,
-        dx=p.dx,
-        dy=p.dy,
-        object=p.object,
-        state=list(p.state),
-    )
+    return ros.Plan(**{name: getattr(p, name) for name in PlanColumns.COLUMNS})
 
 
 def _plan_from_ros(msg: Any, where: str) -> PlanColumns:
-    """The columns as they came (checked here, so the error names the field); steps are built
-    only where read (:class:`PlanColumns`): the world reads a plan only as far as it skips."""
-    n = len(msg.x)
-    columns = ("y", "searching", "sensed_count", "kind", "dx", "dy", "object", "state")
-    for name in columns:
-        if len(getattr(msg, name)) != n:
-            raise MessageError(f"{where}.{name}: {len(getattr(msg, name))} entries, x has {n}")
-    if sum(msg.sensed_count) != len(msg.sensed):
-        raise MessageError(
-            f"{where}.sensed: {len(msg.sensed)} ids, sensed_count says {sum(msg.sensed_count)}"
-        )
-    if max(msg.kind, default=0) >= len(PLAN_KINDS):
-        bad = next(i for i, code in enumerate(msg.kind) if code >= len(PLAN_KINDS))
-        raise MessageError(
-            f"{where}.kind[{bad}]: {msg.kind[bad]} is not one of 0 (wait), 1 (move), 2 (carry)"
-        )
-    return PlanColumns(**{name: getattr(msg, name) for name in PlanColumns.COLUMNS})
+    """The columns as they came (:class:`PlanColumns` checks them): steps are built only where
+    read — the world reads a plan only as far as it skips."""
+    try:
+        return PlanColumns(**{name: getattr(msg, name) for name in PlanColumns.COLUMNS})
+    except ValueError as exc:
+        raise MessageError(f"{where}.{exc}") from None
 
 
 @dataclasses.dataclass
