@@ -27,6 +27,7 @@ import os
 import signal
 import sys
 import time
+from typing import NoReturn
 
 import rclpy
 import yaml
@@ -48,6 +49,7 @@ from ost_ros.coordination import ORGANISATIONS, CoordinationPolicy
 from ost_ros.model import Scenario
 from ost_ros.scenario import ScenarioError, load_scenario, with_team
 from ost_ros.team import TeamInfo
+from ost_ros.yamlload import safe_load
 
 # Without the world for this long after the start, the agent gives up (it would wait forever).
 WORLD_LOST_S = 10.0
@@ -148,6 +150,8 @@ class AgentRunner:
         self.held_since: float | None = None
         self.throttle = tp.Throttle(node.get_logger())
         self.created = time.monotonic()  # for saying what discovery lacks when it takes long
+        self.discovery = tp.Unchanged()  # what it lacks, and since when (transport.REDISCOVER_S)
+        self.rediscover_s = node.get_parameter("rediscover_s").value
         me = runtime.me
         self.guard = tp.node_auth(node.get_parameter("keys").value, node.get_parameter("insecure").value, me)
         # Peers' samples as received (signed by them): what this agent relays for a peer that a
@@ -211,6 +215,13 @@ class AgentRunner:
 
     def unmatched(self) -> list[str]:
         """What discovery still lacks, as ``topic matched/needed`` (empty: ready)."""
+        return [
+            f"{'readers' if isinstance(e, Publisher) else 'writers'} of {e.topic_name} {have}/{need}"
+            for e, have, need in self.lacking()
+        ]
+
+    def lacking(self) -> list[tuple[Publisher | Subscription, int, int]]:
+        """The endpoints whose matching is not complete: (endpoint, matched, needed)."""
         k = self.observers
         counts: list[tuple[Publisher | Subscription, int, int]] = [
             (self.pub_acted, self.pub_acted.get_subscription_count(), 1 + k),
@@ -224,11 +235,26 @@ class AgentRunner:
             *((pub, pub.get_subscription_count(), self.n + k) for pub in self.kind_pubs.values()),
             *((sub, sub.get_publisher_count(), self.n) for sub in self.kind_subs),
         ]
-        return [
-            f"{'readers' if isinstance(e, Publisher) else 'writers'} of {e.topic_name} {have}/{need}"
-            for e, have, need in counts
-            if have < need
-        ]
+        return [(e, have, need) for e, have, need in counts if have < need]
+
+    def rediscover(self, endpoints: list[Publisher | Subscription]) -> None:
+        """Create ``endpoints`` anew (transport.REDISCOVER_S); before the run, so nothing is
+        in flight on them."""
+        for old in endpoints:
+            new = tp.renew(self.node, old)
+            for name in (
+                "pub_acted",
+                "pub_ready",
+                "pub_report",
+                "sub_tick",
+                "sub_end",
+                "pub_alive",
+                "pub_resend",
+            ):
+                if getattr(self, name) is old:
+                    setattr(self, name, new)
+            self.kind_pubs = {kind: new if p is old else p for kind, p in self.kind_pubs.items()}
+            self.kind_subs = [new if s is old else s for s in self.kind_subs]
 
     def on_timer(self) -> None:
         self.leave_if_reported()
@@ -237,6 +263,14 @@ class AgentRunner:
             now = time.monotonic()
             if lacking and now - self.created > tp.DISCOVERY_NOTE_S:  # say what discovery lacks
                 self.throttle.note(("start", "agent"), f"not ready yet: {', '.join(lacking[:6])}")
+            if lacking and self.discovery.for_s(lacking, now) > self.rediscover_s:
+                self.node.get_logger().warning(
+                    f"discovery has not moved for {self.rediscover_s:g} s ({', '.join(lacking[:6])}): "
+                    "creating those endpoints anew"
+                )
+                self.rediscover([e for e, _, _ in self.lacking()])
+                self.discovery.restart(now)
+                return
             if not lacking:
                 # One sample asserts this robot's liveliness at once (the world waits for it)
                 self.say_alive()
@@ -417,6 +451,13 @@ def declare(node: Node) -> None:
     p("keys", "", "the run's key directory (ost keys make): signs and checks every message")
     p("insecure", False, "no signatures: accept unsigned messages (for comparison)")
     p("executor", "events", "how the node waits for samples", constraints="events or single")
+    p(
+        "rediscover_s",
+        tp.REDISCOVER_S,
+        "create anew the endpoints whose matching has not moved for this long at start (s)",
+        0.1,
+        3600.0,
+    )
 
 
 def agent_id_from_args(argv: list[str]) -> int | None:
@@ -439,7 +480,7 @@ def agent_id_from_args(argv: list[str]) -> int | None:
         elif ros and a == "--params-file" and k + 1 < len(argv):
             try:
                 with open(argv[k + 1]) as f:
-                    doc = yaml.safe_load(f)
+                    doc = safe_load(f)
                 for section in (doc or {}).values():
                     params = (section or {}).get("ros__parameters", {}) if isinstance(section, dict) else {}
                     if isinstance(params, dict) and "agent_id" in params:
@@ -454,7 +495,7 @@ def agent_id_from_args(argv: list[str]) -> int | None:
         return None
 
 
-def main(args=None) -> int:
+def main(args=None) -> NoReturn:
     rclpy.init(args=args)
     node = None
     code = 0
@@ -489,8 +530,8 @@ def main(args=None) -> int:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
-    return code
+    tp.leave(code)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

@@ -121,6 +121,8 @@ def bench(
         "round_trip_quiet_ms": rt.get("quiet", {}).get("median"),
         "round_trip_messages_ms": rt.get("messages", {}).get("median"),
         "bring_up_s": stats.get("bring_up_s"),
+        # the rest of the wall time: ost_up.sh's preparation before launch, the exit after the result
+        "outside_s": round(wall - stats["wall_s"] - (stats.get("bring_up_s") or 0), 1),
         "load": round(os.getloadavg()[0], 2),
     }
 

@@ -133,11 +133,11 @@ if [ -n "$record" ]; then
   record="$(cd "$(dirname "$record")" && pwd)/$(basename "$record")"
 fi
 [ -z "$domain" ] || [ "$domain" -le 232 ] || die "--domain-id: $domain is above 232"
-# What the protocol can run, from the registry (one line and exit code 2 if it cannot).
-check=(--coordination "$coordination"); [ -z "$mute" ] || check+=(--silence)
+# What the protocol can run, from the registry (one line and exit code 2 if it cannot); checked
+# here when a background run forks, else with the rest of the preparation (world_node.prepare).
+check=(--protocol "$protocol" --coordination "$coordination"); [ -z "$mute" ] || check+=(--silence)
 [ "$partition" = negotiated ] && check+=(--own-sweeps)
-why="$("$bin/ost" protocols check "$protocol" "${check[@]}" 2>&1 >/dev/null)" \
-  || die "--protocol $protocol: ${why#*error: }"
+prepare() { "$bin/python" -m world_node.prepare "${check[@]}" "$@"; }
 case "$discovery" in multicast|static|server) ;; *) die "--discovery: '$discovery' is not multicast, static or server" ;; esac
 [ "$loss" -le 100 ] || die "--loss: a percentage 0..100"
 if [ "$hosts" -gt 0 ]; then
@@ -147,14 +147,18 @@ else
 fi
 
 # ------------------------------------------------------------------ run directory, background
+made_run_dir=0
+unmade() { [ "$made_run_dir" = 0 ] || rm -rf "$run_dir"; exit "$1"; }   # a run that never started
 if [ -z "$run_dir" ]; then
   run_dir="$(mktemp -d /tmp/ost_run.XXXXXX)" || die "cannot create a run directory"
+  made_run_dir=1
 else
   mkdir -p "$run_dir" || die "--run-dir: cannot create $run_dir"
   [ ! -f "$run_dir/world.pid" ] || die "--run-dir: $run_dir holds a run (ost_down.sh it first)"
 fi
 run_dir="$(cd "$run_dir" && pwd)"
 if [ "$background" = 1 ]; then
+  prepare || unmade 2
   args=()
   for a in "$@"; do args+=("$a"); done
   # Re-run this script in the background with the same options, supervising the run.
@@ -202,6 +206,42 @@ if [ "$background" = 1 ]; then
   exit 0
 fi
 
+# ------------------------------------------------------------------ scenario and parameters
+# One Python process checks the protocol, generates the scenario if asked, reads the team's ids
+# and makes the run's keys (world_node/prepare.py: each Python start costs ~0.4 s).
+prep=()
+if [ -z "$scenario" ]; then
+  prep+=(--generate "$run_dir/scenario.yaml" --agents "$agents" --objects "$objects" --seed "$seed")
+  [ -n "$width" ] && prep+=(--width "$width")
+  [ -n "$height" ] && prep+=(--height "$height")
+  [ -n "$nmax" ] && prep+=(--nmax "$nmax")
+  scenario="$run_dir/scenario.yaml"
+  team=0
+else
+  scenario="$(cd "$(dirname "$scenario")" && pwd)/$(basename "$scenario")"
+  team="${agents:-0}"
+  prep+=(--scenario "$scenario" --team "$team")
+fi
+if [ "$partition" = negotiated ]; then
+  [ "$team" = 0 ] || die "--partition negotiated: --agents would replace the scenario's team; give a scenario with it"
+  if [ "${prep[0]}" = --generate ]; then prepare "${prep[@]}" > /dev/null || unmade 2; fi
+  "$bin/ost" negotiate partition --scenario "$scenario" -o "$run_dir/scenario_negotiated.yaml" \
+    > "$run_dir/partition.txt" || exit 2
+  scenario="$run_dir/scenario_negotiated.yaml"
+  say "search areas negotiated: $(tail -n 1 "$run_dir/partition.txt")"
+  prep=(--scenario "$scenario" --team 0)
+fi
+# Signed messages: a key per robot and one for the world, made for this run (docs/ros.md).
+if [ "$insecure" = 1 ]; then
+  auth_params="    insecure: true"
+else
+  rm -rf "$run_dir/keys"
+  prep+=(--keys "$run_dir/keys")
+  auth_params="    keys: \"$run_dir/keys\""
+fi
+ids="$(prepare "${prep[@]}")" || unmade 2
+n="$(echo $ids | wc -w)"
+
 # ------------------------------------------------------------------ domain and discovery range
 lock_root="/tmp/ost_domain_locks"
 mkdir -p "$lock_root"
@@ -241,48 +281,6 @@ if [ "$hosts" -gt 0 ]; then
   host_of() { echo "${netns}_h$(( $1 % hosts ))"; }
 fi
 
-# ------------------------------------------------------------------ scenario and parameters
-if [ -z "$scenario" ]; then
-  gen=(--agents "$agents" --objects "$objects" --seed "$seed")
-  [ -n "$width" ] && gen+=(--width "$width")
-  [ -n "$height" ] && gen+=(--height "$height")
-  [ -n "$nmax" ] && gen+=(--nmax "$nmax")
-  "$bin/ost" generate "${gen[@]}" -o "$run_dir/scenario.yaml" || exit 2
-  scenario="$run_dir/scenario.yaml"
-  team=0
-else
-  scenario="$(cd "$(dirname "$scenario")" && pwd)/$(basename "$scenario")"
-  team="${agents:-0}"
-fi
-if [ "$partition" = negotiated ]; then
-  [ "$team" = 0 ] || die "--partition negotiated: --agents would replace the scenario's team; give a scenario with it"
-  "$bin/ost" negotiate partition --scenario "$scenario" -o "$run_dir/scenario_negotiated.yaml" \
-    > "$run_dir/partition.txt" || exit 2
-  scenario="$run_dir/scenario_negotiated.yaml"
-  say "search areas negotiated: $(tail -n 1 "$run_dir/partition.txt")"
-fi
-ids="$("$bin/python" - "$scenario" "$team" <<'EOF'
-import sys
-from ost_ros.scenario import ScenarioError, load_scenario, with_team
-try:
-    s = load_scenario(sys.argv[1])
-    if int(sys.argv[2]):
-        s = with_team(s, int(sys.argv[2]))
-except ScenarioError as exc:
-    print(f"ost_up: error: {exc}", file=sys.stderr); sys.exit(2)
-print(" ".join(str(a.id) for a in s.agents))
-EOF
-)" || exit 2
-n="$(echo $ids | wc -w)"
-# Signed messages: a key per robot and one for the world, made for this run (docs/ros.md).
-if [ "$insecure" = 1 ]; then
-  auth_params="    insecure: true"
-else
-  kargs=(--scenario "$scenario"); [ "$team" = 0 ] || kargs+=(--agents "$team")
-  rm -rf "$run_dir/keys"
-  "$bin/ost" keys make "$run_dir/keys" "${kargs[@]}" > /dev/null || exit 2
-  auth_params="    keys: \"$run_dir/keys\""
-fi
 observers=0   # a recorder / live view: the run starts once every writer has matched it too
 { [ -n "$record" ] || [ "$foxglove" -gt 0 ]; } && observers=1
 cat > "$run_dir/params.yaml" <<EOF
@@ -306,7 +304,7 @@ cat > "$run_dir/world_params.yaml" <<EOF
     scenario: "$scenario"
     agents: $team
     result_file: "$run_dir/result.json"
-    checkpoint_file: "$run_dir/world.checkpoint"
+    checkpoint_file: "$([ "$respawn" -gt 0 ] && echo "$run_dir/world.checkpoint")"
     event_skipping: $skip
     max_steps: $max_steps
     failure_timeout: $failure_timeout

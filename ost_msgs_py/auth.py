@@ -44,6 +44,8 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey,
 from nacl.exceptions import BadSignatureError
 from nacl.signing import SigningKey, VerifyKey
 
+from ost_ros.yamlload import safe_load
+
 WORLD = -1  # the world's signer id
 TEAM_FILE = "team.yaml"
 WINDOW = 1 << 16  # counters of each signer remembered by a receiver (a bitmap of this many bits)
@@ -124,7 +126,7 @@ def load_team(directory: str | Path) -> Team:
     """The run id and public keys from ``directory/team.yaml``."""
     path = Path(directory) / TEAM_FILE
     try:
-        doc = yaml.safe_load(path.read_text())
+        doc = safe_load(path.read_text())
     except OSError as exc:
         raise AuthError(f"{path}: cannot read ({exc.strerror})") from None
     except yaml.YAMLError:

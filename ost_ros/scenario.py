@@ -29,6 +29,7 @@ from ost_ros import validate as v
 from ost_ros.model import DEFAULT_NMAX, AgentSpec, Grid, ObjectSpec, Scenario, Subarea
 from ost_ros.partition import choose_partition, subareas
 from ost_ros.validate import FieldError
+from ost_ros.yamlload import safe_load
 
 TOP_KEYS = ("grid", "partition", "agents", "objects", "nmax")
 
@@ -288,7 +289,7 @@ def load_scenario(path: str | Path) -> Scenario:
 def parse_scenario(text: str, where: str) -> Scenario:
     """Validate a scenario document (YAML or JSON text); errors start with ``where``."""
     try:
-        data = yaml.safe_load(text)
+        data = safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         at = f" at line {mark.line + 1}" if mark is not None else ""

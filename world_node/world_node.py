@@ -38,6 +38,7 @@ import statistics
 import sys
 import time
 from pathlib import Path
+from typing import NoReturn
 
 import rclpy
 from builtin_interfaces.msg import Time
@@ -112,6 +113,13 @@ class WorldNode(Node):
         ("keys", "", "the run's key directory (ost keys make): signs and checks every message", None, None),
         ("insecure", False, "no signatures: accept unsigned messages (for comparison)", None, None),
         ("executor", "events", "how the node waits for samples: events or single", None, None),
+        (
+            "rediscover_s",
+            tp.REDISCOVER_S,
+            "create anew the endpoints whose matching has not moved for this long at start (s)",
+            0.1,
+            3600.0,
+        ),
     )
 
     def __init__(self):
@@ -141,6 +149,7 @@ class WorldNode(Node):
         self.marker_every = p["marker_every"]
         self.exit_when_done = p["exit_when_done"]
         self.linger = p["linger"]
+        self.rediscover_s = p["rediscover_s"]
         self.observers = p["observers"]
         self.progress_file = p["progress_file"]
         self.progress_shown: tuple[int, int] | None = None
@@ -158,6 +167,7 @@ class WorldNode(Node):
         self.bring_up_s: float | None = None
         self.t_start = 0.0
         self.last_progress = self.stall_since = time.monotonic()
+        self.discovery = tp.Unchanged()  # what start lacks, and since when (tp.REDISCOVER_S)
         self.last_sent: list = []  # what the current step published (ROS messages), for resend()
         self.last_agents: list[int] = []  # ... to whom (the survivors)
         self.checkpoint_file = p["checkpoint_file"]
@@ -300,7 +310,21 @@ class WorldNode(Node):
         writers = self.sub_acted.get_publisher_count()
         unseen = sorted(set(self.rt.live) - self.alive_seen) if self.sub_alive else []
         if ticks or writers < len(self.rt.live) or unseen:
-            if time.monotonic() - self.stall_since > STALL_S:  # say what discovery lacks
+            now = time.monotonic()
+            if (ticks or writers < len(self.rt.live)) and self.discovery.for_s(
+                (ticks, writers), now
+            ) > self.rediscover_s:
+                self.get_logger().warning(
+                    f"discovery has not moved for {self.rediscover_s:g} s (tick readers unmatched "
+                    f"{ticks[:8]}, action writers {writers}/{len(self.rt.live)}): creating those "
+                    "endpoints anew"
+                )
+                for i in ticks:
+                    self.pub_tick[i] = tp.renew(self, self.pub_tick[i])
+                if writers < len(self.rt.live):
+                    self.sub_acted = tp.renew(self, self.sub_acted)
+                self.discovery.restart(now)
+            if now - self.stall_since > STALL_S:  # say what discovery lacks
                 self.throttle.note(
                     ("start", "world"),
                     f"not starting yet: tick readers unmatched {ticks[:8]}, action "
@@ -567,7 +591,7 @@ def process_age() -> float | None:
         return None
 
 
-def main(args=None) -> int:
+def main(args=None) -> NoReturn:
     rclpy.init(args=args)
     node = None
     code = 0
@@ -594,8 +618,8 @@ def main(args=None) -> int:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
-    return code
+    tp.leave(code)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

@@ -19,6 +19,7 @@ from typing import Any
 from ost_ros.commands.args import OneLineParser, at_least
 from ost_ros.errors import UsageError
 from ost_ros.negotiation.errors import NegotiationError
+from ost_ros.yamlload import safe_load
 
 TASK_TYPES = ("area", "targets")
 
@@ -125,9 +126,7 @@ def load_task_file(path: Path) -> dict[str, Any]:
         if path.suffix.lower() == ".json":
             data = json.loads(text)
         else:
-            import yaml
-
-            data = yaml.safe_load(text)
+            data = safe_load(text)
     except Exception as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise UsageError(

@@ -6,7 +6,6 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import pickle
 import signal
 import subprocess
 import sys
@@ -106,12 +105,11 @@ def make_keys(run_dir: Path, scenario: Path) -> list[str]:
 INSECURE = ["-p", "insecure:=true"]
 
 
-def checkpoint_step(path) -> int:
-    """The step in the world's checkpoint file (-1 while there is none)."""
+def progress_step(path) -> int:
+    """The step in the world's progress file (``step delivered objects``; -1 while there is none)."""
     try:
-        with open(path, "rb") as f:
-            return pickle.load(f)["rt"].world.t
-    except (OSError, EOFError, pickle.UnpicklingError, KeyError):
+        return int(Path(path).read_text().split()[0])
+    except (OSError, IndexError, ValueError):
         return -1
 
 
@@ -119,7 +117,7 @@ def kill_mid_run(
     run_dir: Path, victim: str, at_step: int, *args: str, timeout: float = 180
 ) -> subprocess.CompletedProcess:
     """Run ost_up.sh with ``args`` and SIGKILL the process ``victim`` (``world``, ``agent_3``,
-    ...) once the world's checkpoint has reached ``at_step``; the completed ost_up.sh process."""
+    ...) once the world's progress file has reached ``at_step``; the completed ost_up.sh process."""
     env = dict(os.environ, OST_VENV=str(BIN.parent))
     env.pop("ROS_DOMAIN_ID", None)
     up = subprocess.Popen(
@@ -132,7 +130,7 @@ def kill_mid_run(
     )
     try:
         deadline = time.monotonic() + 120
-        while checkpoint_step(run_dir / "world.checkpoint") < at_step:
+        while progress_step(run_dir / "progress") < at_step:
             assert time.monotonic() < deadline and up.poll() is None, up.stderr.read()[-2000:]
             time.sleep(0.02)
         os.kill(int((run_dir / f"{victim}.pid").read_text()), signal.SIGKILL)

@@ -81,6 +81,10 @@ def test_bad_arguments_are_one_line(tmp_path):
         (("--scenario", str(tmp_path / "none.yaml")), "no such file"),
         (("--agents", "4"), "give --agents N --objects M --seed S"),
         (("--bogus",), "unknown argument"),
+        (
+            ("--agents", "4", "--objects", "4", "--seed", "1", "--protocol", "bogus"),
+            "--protocol bogus: unknown",
+        ),
     ]:
         run = ost_up(*args)
         assert run.returncode == 2
