@@ -12,6 +12,7 @@ late joiner still gets them.
 
 from __future__ import annotations
 
+import contextlib
 import faulthandler
 import hashlib
 import os
@@ -340,6 +341,7 @@ def leave(code: int) -> NoReturn:
     """End a node's process once its node is destroyed and rclpy shut down: flush the output and
     skip Python's own teardown, which freed every object for ~0.5 s per node at the end of each
     run (measured here); nothing is left to close — rcl's logging ended with the context."""
-    sys.stdout.flush()
-    sys.stderr.flush()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):  # a closed pipe: nothing more to say
+            stream.flush()
     os._exit(code)
