@@ -27,7 +27,6 @@ import os
 import signal
 import sys
 import time
-from typing import NoReturn
 
 import rclpy
 import yaml
@@ -495,7 +494,7 @@ def agent_id_from_args(argv: list[str]) -> int | None:
         return None
 
 
-def main(args=None) -> NoReturn:
+def main(args=None) -> int:
     rclpy.init(args=args)
     node = None
     code = 0
@@ -530,8 +529,8 @@ def main(args=None) -> NoReturn:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
-    tp.leave(code)
+    return code
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -12,14 +12,11 @@ late joiner still gets them.
 
 from __future__ import annotations
 
-import contextlib
 import faulthandler
 import hashlib
-import os
 import re
-import sys
 import time
-from typing import Any, NoReturn
+from typing import Any
 
 from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
@@ -335,13 +332,3 @@ def guard_exit(seconds: float = DESTROY_TIMEOUT_S) -> None:
     """Arm a C-level watchdog (faulthandler's own thread needs no GIL): if the process is still
     alive ``seconds`` from now it prints where it hangs and exits with code 1."""
     faulthandler.dump_traceback_later(seconds, exit=True)
-
-
-def leave(code: int) -> NoReturn:
-    """End a node's process once its node is destroyed and rclpy shut down: flush the output and
-    skip Python's own teardown, which freed every object for ~0.5 s per node at the end of each
-    run (measured here); nothing is left to close — rcl's logging ended with the context."""
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(OSError, ValueError):  # a closed pipe: nothing more to say
-            stream.flush()
-    os._exit(code)

@@ -38,7 +38,6 @@ import statistics
 import sys
 import time
 from pathlib import Path
-from typing import NoReturn
 
 import rclpy
 from builtin_interfaces.msg import Time
@@ -591,7 +590,7 @@ def process_age() -> float | None:
         return None
 
 
-def main(args=None) -> NoReturn:
+def main(args=None) -> int:
     rclpy.init(args=args)
     node = None
     code = 0
@@ -618,8 +617,8 @@ def main(args=None) -> NoReturn:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
-    tp.leave(code)
+    return code
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

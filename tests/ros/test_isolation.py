@@ -77,7 +77,7 @@ def test_two_runs_at_once_do_not_interfere(tmp_path):
 
 
 def test_stray_publisher_is_detected_and_ignored(tmp_path, domain):
-    path, expected = scenario_file(tmp_path, "s", 3, Grid(60, 24))  # a run of several seconds
+    path, expected = scenario_file(tmp_path, "s", 3, Grid(100, 40))  # a run of several seconds
     result = {}
     th = threading.Thread(
         target=lambda: result.update(
