@@ -146,7 +146,7 @@ def protocol_topics(protocol: str) -> dict[str, tuple[QoSProfile, str]]:
 # completes: twice in about ten 51-process runs here an agent's writer stayed at 48/50 readers
 # for over ten minutes (the readers' side had matched it; the graph seen from outside was whole).
 # Matching that has not moved for this long gets the lacking endpoints created anew: a new
-# endpoint is announced and paired afresh (docs/ros.md, "Bring-up").
+# endpoint is announced and paired afresh (docs/ros.md, "discovery that stops moving").
 REDISCOVER_S = 15.0
 
 
