@@ -9,8 +9,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Callable, Sequence
+
+# Before numpy is imported: its OpenBLAS threads cost ~0.15 CPU-s of every start, and no
+# verb calls BLAS (docs/ros.md, "Lost datagrams, late announcements, idle threads").
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from ost_ros.commands.args import OneLineParser
 from ost_ros.errors import UsageError

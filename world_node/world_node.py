@@ -60,6 +60,9 @@ from world_node.runtime import ProtocolViolation, WorldRuntime
 
 # A step taking longer than this is reported (who has not acted yet).
 STALL_S = 5.0
+# How often the progress file may change (a file written and renamed costs ~1-2 ms of the
+# world's time, which the lockstep waits for; a progress line needs no more than this).
+PROGRESS_S = 0.25
 
 
 class WorldNode(Node):
@@ -152,6 +155,7 @@ class WorldNode(Node):
         self.observers = p["observers"]
         self.progress_file = p["progress_file"]
         self.progress_shown: tuple[int, int] | None = None
+        self.progress_at = float("-inf")
         self.ids = self.rt.ids
         self.throttle = tp.Throttle(self.get_logger())
         self.ready: dict[int, Ready] = {}
@@ -420,10 +424,15 @@ class WorldNode(Node):
         if self.marker_every and (self.ticks_sent % self.marker_every == 0 or self.rt.ended):
             self.pub_markers.publish(world_markers(self.rt.world, stamp))
 
-    def write_progress(self) -> None:
-        """'step delivered objects' for a progress line (ost_up.sh on a terminal), when it changed."""
+    def write_progress(self, last: bool = False) -> None:
+        """'step delivered objects' for a progress line (ost_up.sh on a terminal), when it
+        changed, at most every PROGRESS_S (``last``: now)."""
         if not self.progress_file:
             return
+        clock = time.monotonic()
+        if not last and clock - self.progress_at < PROGRESS_S:
+            return
+        self.progress_at = clock
         w = self.rt.world
         now = (w.t, sum(o.delivered is not None for o in w.objects.values()))
         if now == self.progress_shown:
@@ -547,7 +556,7 @@ class WorldNode(Node):
                 self.get_logger().error(f"result_file: cannot write {self.result_file} ({exc.strerror})")
         self.pub_result.publish(String(data=text))
         self.result_at = time.monotonic()
-        self.write_progress()
+        self.write_progress(last=True)
         wall = self.result_at - self.t_start
         stats = {
             "wall_s": round(wall, 3),

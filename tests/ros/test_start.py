@@ -1,0 +1,59 @@
+"""What every node process gets at its start: no thread pool it never uses, and sockets large
+enough for a 50-robot run (docs/ros.md, "Lost datagrams, late announcements, idle threads")."""
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.ros.dds_helpers import INSECURE
+
+# bringup_scripts/fastdds_localhost_udp.xml: <receiveBufferSize>
+RECEIVE_BUFFER = 4 * 1024 * 1024
+
+
+@pytest.mark.parametrize("module", ["agent_node.agent_node", "world_node.world_node", "ost_ros.cli"])
+def test_a_node_module_starts_no_threads(module):
+    # numpy's OpenBLAS would start a thread per core on import (~0.15 CPU-s of every start);
+    # rclpy's own threads are counted before (it does not load numpy)
+    code = (
+        "import os, rclpy; n = len(os.listdir('/proc/self/task')); "
+        f"import {module}; print(len(os.listdir('/proc/self/task')) - n)"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+    assert out.stdout.strip() == "0"
+
+
+def dds_ports(domain: int) -> range:
+    """The UDP ports of a domain (RTPS: 7400 + 250 * domain, then the participants' ports)."""
+    return range(7400 + 250 * domain, 7400 + 250 * (domain + 1))
+
+
+@pytest.mark.skipif(shutil.which("ss") is None, reason="needs ss (iproute2) to read socket buffers")
+def test_a_node_receives_on_sockets_of_the_profiles_size(tmp_path, procs, domain):
+    from ost_ros.model import Grid
+    from ost_ros.scenario import dump_scenario, generate_scenario
+
+    path = tmp_path / "s.yaml"
+    path.write_text(dump_scenario(generate_scenario(2, 2, 1, Grid(20, 10), 2)))
+    procs.start("world", "world_node", "-p", f"scenario:={path}", *INSECURE)
+    procs.wait_for("world", "waiting for 2 agents", timeout=60)
+    pid = procs.procs["world"].pid
+    listing = subprocess.run(["ss", "-u", "-a", "-m", "-n", "-p"], capture_output=True, text=True, check=True)
+    # A socket's line (address, users:((...pid=...))) is followed by its skmem line.
+    lines = listing.stdout.splitlines()
+    sizes = {}
+    for line, mem in zip(lines, lines[1:]):
+        port = re.search(r"^\S+\s+\d+\s+\d+\s+\S+:(\d+)\s", line)
+        size = re.search(r"\brb(\d+)", mem)
+        if f"pid={pid}," in line and port and size and int(port.group(1)) in dds_ports(domain):
+            sizes[int(port.group(1))] = int(size.group(1))
+    assert sizes, f"no DDS socket of the world node found:\n{listing.stdout[-2000:]}"
+    # Linux doubles what is asked (bookkeeping) and caps the request at net.core.rmem_max.
+    cap = int(Path("/proc/sys/net/core/rmem_max").read_text())
+    assert all(rb >= 2 * min(RECEIVE_BUFFER, cap) for rb in sizes.values()), sizes
