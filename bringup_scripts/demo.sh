@@ -17,17 +17,18 @@ while [ $# -gt 0 ]; do
   esac
 done
 run_dir="$(mktemp -d "${TMPDIR:-/tmp}/ost-demo.XXXXXX")"
-"$venv/bin/ost" generate --agents "$agents" --objects "$objects" --seed "$seed" -o "$run_dir/scenario.yaml"
-echo "scenario: N=$agents agents, M=$objects objects, seed $seed, 500x200 grid ($run_dir/scenario.yaml)"
+# ost_up.sh generates the scenario as `ost generate` does, and prints the result as `ost sim`
+# does; its result file is the JSON of `ost sim --json` (one Python start less for each).
+scenario="$run_dir/ros/scenario.yaml"
+echo "scenario: N=$agents agents, M=$objects objects, seed $seed, 500x200 grid ($scenario)"
 echo "== over DDS: 1 world node + $agents agent processes =="
-bash "$repo/bringup_scripts/ost_up.sh" --scenario "$run_dir/scenario.yaml" --protocol "$protocol" \
-  --ci "$ci" --run-dir "$run_dir/ros" --json > "$run_dir/ros.json"
-"$venv/bin/python" -m world_node.report "$run_dir/ros.json"
-"$venv/bin/ost" sim "$run_dir/scenario.yaml" --protocol "$protocol" --ci "$ci" --json > "$run_dir/sim.json"
-if cmp -s "$run_dir/ros.json" "$run_dir/sim.json"; then
+bash "$repo/bringup_scripts/ost_up.sh" --agents "$agents" --objects "$objects" --seed "$seed" \
+  --protocol "$protocol" --ci "$ci" --run-dir "$run_dir/ros"
+"$venv/bin/ost" sim "$scenario" --protocol "$protocol" --ci "$ci" --json > "$run_dir/sim.json"
+if cmp -s "$run_dir/ros/result.json" "$run_dir/sim.json"; then
   echo "== identical to the in-process simulator (ost sim --json) =="
 else
-  echo "== DIFFERS from ost sim --json: compare $run_dir/ros.json and $run_dir/sim.json ==" >&2
+  echo "== DIFFERS from ost sim --json: compare $run_dir/ros/result.json and $run_dir/sim.json ==" >&2
   exit 1
 fi
 echo "logs: $run_dir/ros"
