@@ -10,10 +10,14 @@ from pathlib import Path
 
 import pytest
 
-from tests.ros.dds_helpers import INSECURE
+from tests.ros.dds_helpers import INSECURE, PROFILE
 
-# bringup_scripts/fastdds_localhost_udp.xml: <receiveBufferSize>
-RECEIVE_BUFFER = 4 * 1024 * 1024
+
+def receive_buffer() -> int:
+    """What the profile the nodes load asks for (<receiveBufferSize>, bytes)."""
+    text = re.search(r"<receiveBufferSize>(\d+)</receiveBufferSize>", PROFILE.read_text())
+    assert text is not None, f"{PROFILE}: no <receiveBufferSize>"
+    return int(text.group(1))
 
 
 @pytest.mark.parametrize("module", ["agent_node.agent_node", "world_node.world_node", "ost_ros.cli"])
@@ -56,4 +60,4 @@ def test_a_node_receives_on_sockets_of_the_profiles_size(tmp_path, procs, domain
     assert sizes, f"no DDS socket of the world node found:\n{listing.stdout[-2000:]}"
     # Linux doubles what is asked (bookkeeping) and caps the request at net.core.rmem_max.
     cap = int(Path("/proc/sys/net/core/rmem_max").read_text())
-    assert all(rb >= 2 * min(RECEIVE_BUFFER, cap) for rb in sizes.values()), sizes
+    assert all(rb >= 2 * min(receive_buffer(), cap) for rb in sizes.values()), sizes
