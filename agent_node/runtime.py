@@ -39,7 +39,7 @@ from ost_msgs_py.runtime import (
 from ost_ros import protocols
 from ost_ros.model import Cell
 from ost_ros.protocols.base import ProtocolAgent
-from ost_ros.protocols.plans import Plan, PlannedStep, unroll
+from ost_ros.protocols.plans import Plan, Row, Segment, advance, rows
 from ost_ros.protocols.shared.agent import PLAN_HORIZON
 
 # Quiet steps planned ahead by default: as far as the protocols' planners look.
@@ -229,15 +229,44 @@ class AgentRuntime:
         # Plan about twice as far as the world last skipped: long quiet stretches get long plans,
         # busy phases (every plan cut short by someone's message) cost little planning.
         self._horizon = max(8, min(self.lookahead, 2 * (until - self.last - 1)))
-        plan = PlanColumns.of(self._plan)
-        for k, s in enumerate(range(self.last + 1, until)):
-            sensed = tuple(self._known[i] for i in plan.sensed_at(k))
-            action = self.agent.act(Observation(self.me, s, plan.position(k), sensed))
-            if self.agent.outbox() or not plan.same_action(k, action):
-                raise ProtocolViolation(f"replaying step {s}: the agent deviated from its plan")
-            self.agent.communicate(s, [])
+        self._replay(PlanColumns.of(self._plan), self.last + 1, until)
         self._own = []
         self._plan = ()
+
+    def _replay(self, plan: PlanColumns, start: int, until: int) -> None:
+        """Steps ``start`` .. ``until`` - 1, which the world executed from the agent's plan: the
+        agent acts in each step in which it decides (checked against the plan) and skips the
+        others in bulk — to the end of its plan's settled first segment, or to its comm module's
+        next event — the event engine's rule, which leaves it as acting in every step would
+        (property-tested: the event engine's results are the step engine's)."""
+        k, s = 0, start
+        while s < until:
+            quiet = self._quiet(s, plan.position(k), until - s)
+            if quiet is None:
+                sensed = tuple(self._known[i] for i in plan.sensed_at(k))
+                action = self.agent.act(Observation(self.me, s, plan.position(k), sensed))
+                if self.agent.outbox() or not plan.same_action(k, action):
+                    raise ProtocolViolation(f"replaying step {s}: the agent deviated from its plan")
+                self.agent.communicate(s, [])
+                k, s = k + 1, s + 1
+                continue
+            seg, m, wake = quiet
+            to, _ = advance(seg, s, plan.position(k), m)
+            self.agent.skip(s + m, to, seg, m)
+            if wake == s + m - 1:  # its comm module acts on its own in the last of them
+                self.agent.communicate(wake, [])
+            k, s = k + m, s + m
+
+    def _quiet(self, s: int, position: Cell, left: int) -> tuple[Segment, int, int | None] | None:
+        """The agent's quiet segment from step ``s``, how many of the next ``left`` steps it
+        covers and the comm module's next event; None if the agent decides in step ``s``."""
+        plan = self.agent.plan(s, position)
+        if not plan.settled:
+            return None
+        seg = plan[0]
+        wake = self.agent.next_event(s)
+        m = min(left, left if seg.steps is None else seg.steps, left if wake is None else wake - s + 1)
+        return (seg, m, wake) if m > 0 else None
 
     def progress(self) -> list:
         """Everything that can be done now; returns the messages to publish, in order."""
@@ -287,39 +316,28 @@ class AgentRuntime:
         """The steps after ``obs.t`` of the agent's plan (made before it acted in ``obs.t``), each
         with the observation it expects (the world checks it); cut where the agent would sense
         an object it reacts to. Built as the columns it travels in (no object per step)."""
-        steps = unroll(plan, obs.t, obs.position, 1 + min(self.lookahead, self._horizon))
-        if not steps or not _same_action(action, steps[0]):
+        steps = rows(plan, obs.t, obs.position, 1 + min(self.lookahead, self._horizon))
+        first = next(steps, None)
+        if first is None or not _same_action(action, first):
             return ()  # the plan does not start with what it did (never, if plans are right)
         where = self._known_by_cell(self.agent.departures())
-        x: list[int] = []
-        y: list[int] = []
-        searching: list[bool] = []
+        kept: list[Row] = []
         count: list[int] = []
         ids: list[int] = []
-        kind: list[int] = []
-        dx: list[int] = []
-        dy: list[int] = []
-        obj: list[int] = []
-        state: list[str] = []
-        for st in steps[1:]:
-            sensed = _predict_sensed(where, st.position, st.t) if st.reads_sensor else ()
-            if any(self.agent.news(self._known[i]) for i in sensed):
+        for row in steps:
+            sensed = _predict_sensed(where, row[1], row[0]) if row[2] else ()
+            if sensed and any(self.agent.news(self._known[i]) for i in sensed):
                 break
-            x.append(st.position[0])
-            y.append(st.position[1])
-            searching.append(st.reads_sensor)
+            kept.append(row)
             count.append(len(sensed))
             ids.extend(sensed)
-            kind.append(PLAN_CODE[st.kind])
-            dx.append(st.direction[0])
-            dy.append(st.direction[1])
-            obj.append(st.object)
-            state.append(st.state)
-        if not x:
+        if not kept:
             return ()
+        _, position, searching, kind, direction, obj, state = zip(*kept)
         return PlanColumns(
-            x=x, y=y, searching=searching, sensed_count=count, sensed=ids,
-            kind=kind, dx=dx, dy=dy, object=obj, state=state,
+            x=[p[0] for p in position], y=[p[1] for p in position], searching=searching,
+            sensed_count=count, sensed=ids, kind=[PLAN_CODE[k] for k in kind],
+            dx=[d[0] for d in direction], dy=[d[1] for d in direction], object=obj, state=state,
         )  # fmt: skip
 
     def _known_by_cell(self, departures: Mapping[int, int]) -> dict[Cell, list[tuple[int, int | None]]]:
@@ -366,10 +384,11 @@ def _predict_sensed(
     return tuple(out)
 
 
-def _same_action(action: Action, step: PlannedStep) -> bool:
+def _same_action(action: Action, step: Row) -> bool:
+    _, _, _, kind, direction, obj, state = step
     return (
-        action.kind is step.kind
-        and tuple(action.direction) == tuple(step.direction)
-        and action.object == step.object
-        and action.state == step.state
+        action.kind is kind
+        and tuple(action.direction) == tuple(direction)
+        and action.object == obj
+        and action.state == state
     )

@@ -147,17 +147,14 @@ class WorldRuntime:
         return self._next(last, sent)
 
     def _skip(self, live: tuple[int, ...], plans: list[Sequence[PlanStep]]) -> None:
-        columns = [PlanColumns.of(p) for p in plans]  # as they came off the wire: no copy
-        for k in range(min(len(c) for c in columns)):
+        team = list(zip(live, [PlanColumns.of(p) for p in plans]))  # as they came off the wire
+        for k in range(min(len(plan) for _, plan in team)):
             if self.world.done or self.world.t >= self.limit:
                 return
+            if not all(self._as_planned(agent, plan, k) for agent, plan in team):
+                return
             t = self.world.t
-            actions = []
-            for agent, plan in zip(live, columns):
-                if not self._as_planned(agent, plan, k):
-                    return
-                actions.append(plan.action(agent, t, k))
-            self._apply(actions)
+            self._apply([plan.action(agent, t, k) for agent, plan in team])
             self.skipped += 1
 
     def _as_planned(self, agent: int, plan: PlanColumns, k: int) -> bool:

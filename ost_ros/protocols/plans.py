@@ -7,7 +7,7 @@ places that skip steps:
 
 - the event engine (:mod:`ost_ros.engines.event`) jumps over the first segment of every agent at
   once (:func:`advance`), then tells each agent (``skip``);
-- the DDS runtime (:mod:`agent_node.runtime`) sends the whole plan, step by step (:func:`unroll`),
+- the DDS runtime (:mod:`agent_node.runtime`) sends the whole plan, step by step (:func:`rows`),
   to the world, which executes it as long as what it observes is what the plan expects.
 
 A plan is valid from the step it was made for, as long as no message reaches the agent and its
@@ -119,21 +119,30 @@ def _act(seg: Segment, s: int, pos: Cell, m: int) -> tuple[ActionKind, Cell, int
 def unroll(plan: Iterable[Segment], t: int, position: Cell, limit: int) -> list[PlannedStep]:
     """The plan step by step from step ``t`` at ``position``: at most ``limit`` steps (an
     open-ended segment is cut there)."""
-    out: list[PlannedStep] = []
+    return [PlannedStep(*row) for row in rows(plan, t, position, limit)]
+
+
+Row = tuple[int, Cell, bool, ActionKind, Cell, int, str]  # a PlannedStep's fields, in order
+
+
+def rows(plan: Iterable[Segment], t: int, position: Cell, limit: int) -> Iterator[Row]:
+    """:func:`unroll`'s steps as plain tuples, one at a time: the DDS runtime reads them until
+    the agent would sense news, every time it acts (no object per step, none past the cut)."""
+    done = 0
     pos, s = position, t
     for seg in plan:
-        n = limit - len(out) if seg.steps is None else min(seg.steps, limit - len(out))
+        n = limit - done if seg.steps is None else min(seg.steps, limit - done)
         m = seg.index
         for _ in range(n):
             kind, direction, obj, moves = _act(seg, s, pos, m)
-            out.append(PlannedStep(s, pos, seg.reads_sensor, kind, direction, obj, seg.state))
+            yield s, pos, seg.reads_sensor, kind, direction, obj, seg.state
             if moves:
                 pos = apply(pos, direction)
                 m += 1
             s += 1
-        if len(out) >= limit:
+        done += n
+        if done >= limit:
             break
-    return out
 
 
 def advance(seg: Segment, t: int, position: Cell, steps: int) -> tuple[Cell, int]:

@@ -3,6 +3,7 @@ way the world and the agent read it — indexed, column by column, compared, pic
 checkpoint) and through the wire."""
 
 import pickle
+from dataclasses import FrozenInstanceError, fields
 
 import pytest
 from hypothesis import given
@@ -40,7 +41,8 @@ def test_columns_are_the_steps(steps):
         assert plan[k] == s and plan[k - len(steps)] == s
         assert plan.position(k) == s.position and plan.sensed_at(k) == s.sensed
         a = Action(7, 100 + k, s.kind, s.direction, s.object, s.state)
-        assert plan.action(7, 100 + k, k) == a and plan.same_action(k, a)
+        b = plan.action(7, 100 + k, k)  # built without Action's __init__ (the world's skip)
+        assert b == a and hash(b) == hash(a) and vars(b) == vars(a) and plan.same_action(k, a)
     assert hash(plan) == hash(steps)
     assert pickle.loads(pickle.dumps(plan)) == plan
     assert PlanColumns.of(plan) is plan
@@ -54,6 +56,16 @@ def test_the_wire_gives_columns_that_sign_alike(steps):
     assert back == acted
     # the signed bytes do not depend on how the plan was held
     assert auth.canonical(wire.to_ros(back)) == auth.canonical(wire.to_ros(acted))
+
+
+def test_an_action_is_its_fields():
+    # PlanColumns.action fills an Action's __dict__ instead of calling its __init__: right only
+    # while Action is a plain frozen dataclass whose fields are all it holds.
+    assert not hasattr(Action, "__post_init__") and "__slots__" not in vars(Action)
+    a = PlanColumns.of((PlanStep((0, 0), False, (), ActionKind.MOVE, (1, 0), -1, "w"),)).action(2, 9, 0)
+    assert type(a) is Action and list(vars(a)) == [f.name for f in fields(Action)]
+    with pytest.raises(FrozenInstanceError):
+        a.t = 3  # type: ignore[misc]
 
 
 def test_a_different_step_is_unequal():
