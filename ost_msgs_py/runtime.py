@@ -260,7 +260,7 @@ def _action(agent: int, t: int, kind: ActionKind, direction: Cell, obj: int, sta
     one per agent per step it skips (111 000 in the demo), and a frozen dataclass's ``__init__``
     sets each of its seven fields through ``object.__setattr__``. Filling the new instance's
     ``__dict__`` gives an equal object (same fields, same hash); Action has no ``__post_init__``
-    to skip (tests/msgs/test_runtime_messages.py checks both)."""
+    to skip (tests/ost_msgs_py/test_plan_columns.py checks both)."""
     a = object.__new__(Action)
     a.__dict__.update(
         agent=agent, t=t, kind=kind, direction=direction, object=obj, state=state, version=SCHEMA_VERSION
