@@ -38,14 +38,13 @@ from rclpy.subscription import Subscription
 from std_msgs.msg import String
 
 from agent_node import transport as tp
-from agent_node.params import ParameterError
-from agent_node.params import declare as declare_param
-from agent_node.runtime import LOOKAHEAD, AgentRuntime, ProtocolViolation
+from agent_node.params import ParameterError, declare_role
+from agent_node.runtime import AgentRuntime, ProtocolViolation
 from ost_msgs_py import wire
 from ost_msgs_py.runtime import Acted, AgentReport, Ready, Resend, RunEnd, Sample, Tick
-from ost_ros import protocols
-from ost_ros.coordination import ORGANISATIONS, CoordinationPolicy
+from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Scenario
+from ost_ros.runconfig import AGENT, ConfigError, RunConfig
 from ost_ros.scenario import ScenarioError, load_scenario, with_team
 from ost_ros.team import TeamInfo
 from ost_ros.yamlload import safe_load
@@ -64,61 +63,30 @@ class AgentNode(Node):
 
     def __init__(self, name: str = "agent"):
         super().__init__(name, namespace=tp.NAMESPACE)
-        declare(self)
         scenario, policy, runtime = load_agent(self)
         self.runner = AgentRunner(self, scenario, policy, runtime)
 
 
-OPTIONS = list({o.name: o for spec in protocols.REGISTRY.values() for o in spec.options}.values())
-
-
 def load_agent(node: Node) -> tuple[Scenario, CoordinationPolicy, AgentRuntime]:
-    """Read and check the parameters; the runtime around the core agent."""
-    p = {
-        name: node.get_parameter(name).value
-        for name in (
-            "agent_id",
-            "scenario",
-            "agents",
-            "protocol",
-            "ci",
-            "interval",
-            "area_fraction",
-            "lookahead",
-            "mute_negotiation_from",
-            "coordination",
-            *(o.name for o in OPTIONS),
-        )
-    }
+    """Declare and check the parameters (the run configuration's agent settings); the runtime
+    around the core agent."""
+    p = declare_role(node, AGENT)
     if p["agent_id"] < 0:
         raise ParameterError("agent_id: must be set to a non-negative id (-p agent_id:=N)")
     if not p["scenario"]:
         raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
-    for name in ("ci", "agents", "interval", "lookahead"):
-        if p[name] < 0 or (name == "ci" and p[name] < 1):
-            raise ParameterError(f"{name}: {p[name]} is out of range")
-    if not 0.0 <= p["area_fraction"] <= 1.0:
-        raise ParameterError(f"area_fraction: {p['area_fraction']} is not in [0, 1]")
-    if p["coordination"] not in ORGANISATIONS:
-        raise ParameterError(f"coordination: {p['coordination']!r} is not one of {', '.join(ORGANISATIONS)}")
+    cfg = RunConfig.of(p)
     try:
-        settings = protocols.settings_from(p["protocol"], p)
         scenario = load_scenario(p["scenario"])
         if p["agents"]:
             scenario = with_team(scenario, p["agents"])
-        policy = CoordinationPolicy(
-            ci=p["ci"],
-            interval=p["interval"] or None,
-            area_fraction=p["area_fraction"] or None,
-            organisation=p["coordination"],
-        )
-        spec = protocols.check(
-            p["protocol"], scenario=scenario, policy=policy, silence=p["mute_negotiation_from"] >= 0
-        )
-    except protocols.ProtocolError as exc:
-        raise ParameterError(f"protocol: {exc}") from None
     except ScenarioError as exc:
         raise ParameterError(f"scenario: {exc}") from None
+    try:
+        spec = cfg.check_protocol(scenario)
+    except ConfigError as exc:
+        raise ParameterError(f"protocol: {exc}") from None
+    policy, settings = cfg.policy(), cfg.protocol_settings()
     ids = tuple(a.id for a in scenario.agents)
     if p["agent_id"] not in ids:
         raise ParameterError(f"agent_id: {p['agent_id']} is not in the scenario's team {list(ids)}")
@@ -149,7 +117,7 @@ class AgentRunner:
         self.held_since: float | None = None
         self.throttle = tp.Throttle(node.get_logger())
         self.created = time.monotonic()  # for saying what discovery lacks when it takes long
-        self.discovery = tp.Unchanged()  # what it lacks, and since when (transport.REDISCOVER_S)
+        self.discovery = tp.Unchanged()  # what it lacks, and since when (the rediscover_s parameter)
         self.rediscover_s = node.get_parameter("rediscover_s").value
         me = runtime.me
         self.guard = tp.node_auth(node.get_parameter("keys").value, node.get_parameter("insecure").value, me)
@@ -237,7 +205,7 @@ class AgentRunner:
         return [(e, have, need) for e, have, need in counts if have < need]
 
     def rediscover(self, endpoints: list[Publisher | Subscription]) -> None:
-        """Create ``endpoints`` anew (transport.REDISCOVER_S); before the run, so nothing is
+        """Create ``endpoints`` anew (the rediscover_s parameter); before the run, so nothing is
         in flight on them."""
         for old in endpoints:
             new = tp.renew(self.node, old)
@@ -400,63 +368,6 @@ class AgentRunner:
         """After the result: leave once every reader of the report has acknowledged it."""
         if self.result_seen and self.pub_report.wait_for_all_acked(Duration(seconds=0)):
             self.done = True
-
-
-def declare(node: Node) -> None:
-    """The agent's parameters, read-only with descriptors (``ros2 param describe``)."""
-    p = functools.partial(declare_param, node)
-    p("agent_id", -1, "this robot's id in the scenario's team (-1: unset)", -1, 1_000_000)
-    p("scenario", "", "scenario YAML file (ost generate); every node of a run loads the same")
-    p("agents", 0, "team size override (0: the scenario's team)", 0, 100_000)
-    p("protocol", "ccp", "cooperation protocol", constraints="one of " + ", ".join(protocols.names()))
-    seen: set[str] = set()
-    for spec in protocols.REGISTRY.values():
-        for opt in spec.options:
-            if opt.name not in seen:  # an option two protocols share is one parameter
-                seen.add(opt.name)
-                p(opt.name, protocols.option_default(spec, opt), f"{spec.name}: {opt.help}")
-    p("mute_negotiation_from", -1, "fault injection: no negotiation moves from this step on (-1: never)", -1)
-    p("ci", 1, "coordination trigger: coordinate after every ci-th found object", 1)
-    p("interval", 0, "coordination trigger: coordinate every interval steps (0: off)", 0)
-    p(
-        "area_fraction",
-        0.0,
-        "coordination trigger: coordinate per fraction of area searched (0: off)",
-        0.0,
-        1.0,
-    )
-    p(
-        "coordination",
-        "distributed",
-        "who runs Algorithm Coordination",
-        constraints="distributed or coordinator",
-    )
-    p("lookahead", LOOKAHEAD, "quiet steps planned ahead for event skipping (0: off)", 0, 100_000)
-    p(
-        "failure_timeout",
-        tp.FAILURE_TIMEOUT_S,
-        "liveliness lease offered to the world (s; 0: none)",
-        0.0,
-        3600.0,
-    )
-    p("die_at_step", -1, "fault injection: SIGKILL this process on the tick of this step (-1: never)", -1)
-    p(
-        "observers",
-        0,
-        "readers beside the team (a recorder, a live view) each lockstep writer waits for",
-        0,
-        16,
-    )
-    p("keys", "", "the run's key directory (ost keys make): signs and checks every message")
-    p("insecure", False, "no signatures: accept unsigned messages (for comparison)")
-    p("executor", "events", "how the node waits for samples", constraints="events or single")
-    p(
-        "rediscover_s",
-        tp.REDISCOVER_S,
-        "create anew the endpoints whose matching has not moved for this long at start (s)",
-        0.1,
-        3600.0,
-    )
 
 
 def agent_id_from_args(argv: list[str]) -> int | None:

@@ -42,3 +42,21 @@ def declare(
                 FloatingPointRange(from_value=float(lo or 0.0), to_value=float(hi or 1e9), step=0.0)
             ]
     node.declare_parameter(name, default, d)
+
+
+def declare_role(node: Node, role: str) -> dict[str, Any]:
+    """Declare every setting a node of ``role`` reads (:func:`ost_ros.runconfig.of_node`), read-only
+    with its description, range and choices; their values, checked as every bring-up checks them
+    (:class:`~ost_ros.runconfig.RunConfig`: a bad one is a :class:`ParameterError` naming it)."""
+    from ost_ros import runconfig
+
+    settings = runconfig.of_node(role)
+    for s in settings:
+        choices = "one of " + ", ".join(s.choices) if s.choices else ""
+        declare(node, s.name, s.default, s.help, s.lo, s.hi, constraints=choices)
+    values = {s.name: node.get_parameter(s.name).value for s in settings}
+    try:
+        runconfig.RunConfig.of(values)
+    except runconfig.ConfigError as exc:
+        raise ParameterError(f"{exc.setting}: {exc}") from None
+    return values

@@ -68,9 +68,6 @@ def alive_topic(agent_id: int) -> str:
     return f"{agent_node_name(agent_id)}/alive"
 
 
-# Liveliness lease (s): an agent whose liveliness is lost for it and then for as long again (with
-# nothing heard from it) is declared failed by the world: detection in about 2 leases.
-FAILURE_TIMEOUT_S = 1.0
 # Discovery taking longer than this is reported (what a node still lacks): 50 agents on two
 # cores take 20-40 s to match; a node still unmatched after a minute is stuck.
 DISCOVERY_NOTE_S = 60.0
@@ -145,9 +142,9 @@ def protocol_topics(protocol: str) -> dict[str, tuple[QoSProfile, str]]:
 # Fast DDS now and then never pairs one writer with one reader while the rest of discovery
 # completes: twice in about ten 51-process runs here an agent's writer stayed at 48/50 readers
 # for over ten minutes (the readers' side had matched it; the graph seen from outside was whole).
-# Matching that has not moved for this long gets the lacking endpoints created anew: a new
-# endpoint is announced and paired afresh (docs/ros.md, "discovery that stops moving").
-REDISCOVER_S = 15.0
+# Matching that has not moved for REDISCOVER_S (the run configuration's default) gets the
+# lacking endpoints created anew: a new endpoint is announced and paired afresh (docs/ros.md,
+# "discovery that stops moving").
 
 
 class Unchanged:

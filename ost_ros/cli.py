@@ -28,6 +28,7 @@ VERB_MODULES: tuple[str, ...] = (
     "ost_ros.commands.core",
     "ost_ros.commands.protocols",
     "ost_ros.commands.negotiate",
+    "ost_ros.commands.up",
     "ost_ros.commands.ros",
     "ost_ros.commands.study",
     "ost_ros.commands.faults",

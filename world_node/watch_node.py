@@ -32,10 +32,10 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from agent_node import transport as tp
-from agent_node.params import ParameterError
-from agent_node.params import declare as declare_param
+from agent_node.params import ParameterError, declare_role
 from ost_msgs_py import bag, wire
 from ost_msgs_py.runtime import Acted, AgentReport, Ready, RunEnd, RunInfo, Tick
+from ost_ros.runconfig import WATCH
 from ost_ros.world import World
 from world_node.follow import FollowError, RunFollower
 from world_node.live import LiveView
@@ -46,20 +46,9 @@ FOLLOWED = {wire.type_name(c) for c in (RunInfo, Ready, Tick, Acted, RunEnd, Age
 class WatchNode(Node):
     """``<ns>/watch``: the run's recorder and live view."""
 
-    PARAMETERS = (
-        ("record", "", "write every topic of the namespace to this MCAP file ('': none)", None, None),
-        ("foxglove_port", 0, "serve a Foxglove WebSocket live view on this port (0: none)", 0, 65535),
-        ("foxglove_host", "127.0.0.1", "address the live view listens on", None, None),
-        ("foxglove_rate", 20.0, "live view updates per second at most", 0.1, 1000.0),
-        ("exit_when_done", True, "finish and leave after the run's result (false: stay)", None, None),
-        ("grace", 1.0, "seconds after the result for samples still on their way", 0.0, 60.0),
-    )
-
     def __init__(self):
         super().__init__("watch", namespace=tp.NAMESPACE)
-        for name, default, description, lo, hi in self.PARAMETERS:
-            declare_param(self, name, default, description, lo, hi)
-        p = {name: self.get_parameter(name).value for name, *_ in self.PARAMETERS}
+        p = declare_role(self, WATCH)  # the run configuration's watch settings (ost_ros.runconfig)
         if not p["record"] and not p["foxglove_port"]:
             raise ParameterError("nothing to do: set record:=FILE.mcap and/or foxglove_port:=PORT")
         self.exit_when_done = p["exit_when_done"]

@@ -49,11 +49,11 @@ from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
 from agent_node import transport as tp
-from agent_node.params import ParameterError
-from agent_node.params import declare as declare_param
+from agent_node.params import ParameterError, declare_role
 from ost_msgs_py import auth, wire
 from ost_msgs_py.runtime import Acted, AgentReport, Ready, RunEnd, RunInfo, Tick
 from ost_ros.bounds import lower_bound
+from ost_ros.runconfig import WORLD
 from ost_ros.scenario import ScenarioError, dump_scenario, load_scenario, with_team
 from world_node.markers import world_markers
 from world_node.runtime import ProtocolViolation, WorldRuntime
@@ -68,72 +68,11 @@ PROGRESS_S = 0.25
 class WorldNode(Node):
     """``<ns>/world`` (default namespace ``/ost``): the grid truth, stepping the agents."""
 
-    PARAMETERS = (
-        ("scenario", "", "scenario YAML file (ost generate); every node of a run loads the same", None, None),
-        ("agents", 0, "team size override (0: the scenario's team)", 0, 100_000),
-        ("max_steps", 0, "step limit (0: the simulator's)", 0, None),
-        ("result_file", "", "write the result JSON (as ost sim --json) there ('': none)", None, None),
-        (
-            "event_skipping",
-            True,
-            "execute the agents' plans for quiet steps without a round trip",
-            None,
-            None,
-        ),
-        ("marker_every", 1, "publish markers every k ticks while subscribed (0: never)", 0, None),
-        (
-            "exit_when_done",
-            True,
-            "leave once the agents are gone after the result (false: stay until stopped)",
-            None,
-            None,
-        ),
-        (
-            "linger",
-            10.0,
-            "with exit_when_done: seconds to wait at most for the agents to leave",
-            0.0,
-            86_400.0,
-        ),
-        ("checkpoint_file", "", "write the truth there before every step ('': none)", None, None),
-        ("resume", False, "start from checkpoint_file (a restarted world continues the run)", None, None),
-        (
-            "failure_timeout",
-            tp.FAILURE_TIMEOUT_S,
-            "liveliness lease requested of every agent (s; 0: off)",
-            0.0,
-            3600.0,
-        ),
-        (
-            "observers",
-            0,
-            "readers beside the team (a recorder, a live view) the start waits for on every tick topic",
-            0,
-            16,
-        ),
-        ("progress_file", "", "write 'step delivered objects' there as the run goes ('': none)", None, None),
-        ("keys", "", "the run's key directory (ost keys make): signs and checks every message", None, None),
-        ("insecure", False, "no signatures: accept unsigned messages (for comparison)", None, None),
-        ("executor", "events", "how the node waits for samples: events or single", None, None),
-        (
-            "rediscover_s",
-            tp.REDISCOVER_S,
-            "create anew the endpoints whose matching has not moved for this long at start (s)",
-            0.1,
-            3600.0,
-        ),
-    )
-
     def __init__(self):
         super().__init__(tp.WORLD_NODE, namespace=tp.NAMESPACE)
-        for name, default, description, lo, hi in self.PARAMETERS:
-            declare_param(self, name, default, description, lo, hi)
-        p = {name: self.get_parameter(name).value for name, *_ in self.PARAMETERS}
+        p = declare_role(self, WORLD)  # the run configuration's world settings (ost_ros.runconfig)
         if not p["scenario"]:
             raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
-        for name in ("agents", "max_steps", "marker_every", "failure_timeout", "observers"):
-            if p[name] < 0:
-                raise ParameterError(f"{name}: {p[name]} must not be negative")
         try:
             scenario = load_scenario(p["scenario"])
             if p["agents"]:
@@ -154,6 +93,7 @@ class WorldNode(Node):
         self.rediscover_s = p["rediscover_s"]
         self.observers = p["observers"]
         self.progress_file = p["progress_file"]
+        self.ready_file = p["ready_file"]
         self.progress_shown: tuple[int, int] | None = None
         self.progress_at = float("-inf")
         self.ids = self.rt.ids
@@ -170,7 +110,7 @@ class WorldNode(Node):
         self.bring_up_s: float | None = None
         self.t_start = 0.0
         self.last_progress = self.stall_since = time.monotonic()
-        self.discovery = tp.Unchanged()  # what start lacks, and since when (tp.REDISCOVER_S)
+        self.discovery = tp.Unchanged()  # what start lacks, and since when (rediscover_s)
         self.last_sent: list = []  # what the current step published (ROS messages), for resend()
         self.last_agents: list[int] = []  # ... to whom (the survivors)
         self.checkpoint_file = p["checkpoint_file"]
@@ -353,6 +293,7 @@ class WorldNode(Node):
         self.bring_up_s = process_age()
         self.get_logger().info(f"all {len(self.ids)} agents ready; step 0")
         self.send(self.rt.start())
+        self.write_file(self.ready_file, f"{self.bring_up_s:.3f}\n", "ready_file")
 
     def on_timer(self) -> None:
         now = time.monotonic()
@@ -441,12 +382,18 @@ class WorldNode(Node):
         if now == self.progress_shown:
             return
         self.progress_shown = now
-        tmp = f"{self.progress_file}.tmp"
+        self.write_file(self.progress_file, f"{now[0]} {now[1]} {len(w.objects)}\n", "progress_file")
+
+    def write_file(self, path: str, text: str, what: str) -> None:
+        """A signal file for whoever supervises the run, replaced at once (tmp + rename)."""
+        if not path:
+            return
+        tmp = f"{path}.tmp"
         try:
-            Path(tmp).write_text(f"{now[0]} {now[1]} {len(w.objects)}\n")
-            os.replace(tmp, self.progress_file)
+            Path(tmp).write_text(text)
+            os.replace(tmp, path)
         except OSError as exc:
-            self.throttle.note(("progress", "world"), f"progress_file: cannot write ({exc.strerror})")
+            self.throttle.note((what, "world"), f"{what}: cannot write ({exc.strerror})")
 
     def on_acted(self, msg) -> None:
         a = tp.from_ros_or_warn(msg, self.sub_acted.topic_name, self.throttle, self.guard)

@@ -8,11 +8,10 @@ import json
 import os
 import re
 import shutil
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 from ost_ros.commands.args import at_least, leaf
 from ost_ros.coordination import CoordinationPolicy
@@ -21,8 +20,6 @@ from ost_ros.errors import UsageError
 from ost_ros.faults import HEADER, FaultRow, in_process_rows, markdown
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
-
-REPO = Path(__file__).resolve().parents[2]
 
 
 def register(sub) -> None:
@@ -67,22 +64,16 @@ def cmd_report(args: argparse.Namespace) -> int:
 # ----------------------------------------------------------------------------- DDS runs
 
 
-def _ost_up(*args: str, timeout: float = 300) -> tuple[dict | None, str, float]:
-    env = dict(os.environ)
-    env.pop("ROS_DOMAIN_ID", None)
-    env.setdefault("OST_VENV", str(Path(sys.executable).parent.parent))
+def _ost_up(timeout: int = 300, **settings: Any) -> tuple[dict | None, str, float]:
+    """A DDS run (``ost up``) with these settings: its result, what it said, its wall time."""
+    from ost_ros.commands.up import run_up
+
     t = time.monotonic()
-    p = subprocess.run(
-        ["bash", str(REPO / "bringup_scripts" / "ost_up.sh"), *args, "--json"],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=timeout,
-    )
+    _code, out, err = run_up({**settings, "json": True, "timeout": timeout})
     try:
-        return json.loads(p.stdout), p.stderr, time.monotonic() - t
+        return json.loads(out), err, time.monotonic() - t
     except ValueError:
-        return None, p.stderr, time.monotonic() - t
+        return None, err, time.monotonic() - t
 
 
 def _stamp(text: str, pattern: str) -> float | None:
@@ -97,7 +88,7 @@ def dds_rows() -> list[FaultRow]:
     with tempfile.TemporaryDirectory(prefix="ost_faults_") as tmp:
         path = Path(tmp) / "s.yaml"
         path.write_text(dump_scenario(scenario))
-        base, err, wall0 = _ost_up("--scenario", str(path), "--run-dir", f"{tmp}/base")
+        base, err, wall0 = _ost_up(scenario=str(path), run_dir=f"{tmp}/base")
         if base is None:
             return [
                 FaultRow(
@@ -121,7 +112,7 @@ def dds_rows() -> list[FaultRow]:
                 f"wall {wall0:.1f} s",
             )
         )
-        got, err, wall = _ost_up("--scenario", str(path), "--kill-agent", "2:40", "--run-dir", f"{tmp}/kill")
+        got, err, wall = _ost_up(scenario=str(path), kill_agent=["2:40"], run_dir=f"{tmp}/kill")
         if got is None:
             rows.append(
                 FaultRow(
@@ -155,9 +146,7 @@ def dds_rows() -> list[FaultRow]:
                 )
             )
         if os.geteuid() == 0 and shutil.which("nft"):
-            got, err, wall = _ost_up(
-                "--scenario", str(path), "--hosts", "3", "--loss", "20", "--run-dir", f"{tmp}/loss"
-            )
+            got, err, wall = _ost_up(scenario=str(path), hosts=3, loss=20, run_dir=f"{tmp}/loss")
             fault = "20 % packet loss, 3 simulated hosts"
             if got is None:
                 rows.append(

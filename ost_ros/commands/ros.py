@@ -15,7 +15,6 @@ import importlib
 import math
 import os
 import time
-from pathlib import Path
 
 from ost_ros.errors import UsageError
 
@@ -72,12 +71,11 @@ def register(sub) -> None:
 
 
 def _dds_defaults() -> None:
-    """Talk DDS the way ost_up.sh's nodes do (bringup_scripts/dds_env.sh): UDP on loopback, via
-    the repository's Fast DDS profile, unless the user chose a profile of their own."""
-    profile = Path(__file__).resolve().parents[2] / "bringup_scripts" / "fastdds_localhost_udp.xml"
-    if not os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE") and profile.exists():
-        os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(profile)
-        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"  # the profile keeps it on loopback
+    """Talk DDS the way a run's nodes do (:func:`ost_ros.commands.bringup.dds_env`): UDP on
+    loopback, via our Fast DDS profile, unless the user chose a profile of their own."""
+    from ost_ros.commands.bringup import dds_env
+
+    os.environ.update(dds_env())
 
 
 class _Graph:

@@ -17,7 +17,7 @@ BIN = Path(sys.executable).parent
 UP = REPO / "bringup_scripts" / "ost_up.sh"
 
 
-PROFILE = REPO / "bringup_scripts" / "fastdds_localhost_udp.xml"
+PROFILE = REPO / "ost_ros" / "dds" / "fastdds_localhost_udp.xml"
 
 
 def ros_env(domain: int) -> dict[str, str]:

@@ -77,13 +77,13 @@ def test_hcp_over_dds_equals_ost_sim(tmp_path):
 
 def test_bad_arguments_are_one_line(tmp_path):
     for args, text in [
-        (("--agents", "x"), "--agents: expected a non-negative integer"),
+        (("--agents", "x"), "--agents: invalid int 'x'"),
         (("--scenario", str(tmp_path / "none.yaml")), "no such file"),
-        (("--agents", "4"), "give --agents N --objects M --seed S"),
-        (("--bogus",), "unknown argument"),
+        (("--agents", "4"), "give --agents N --objects M"),
+        (("--bogus",), "unrecognized arguments: --bogus"),
         (
             ("--agents", "4", "--objects", "4", "--seed", "1", "--protocol", "bogus"),
-            "--protocol bogus: unknown",
+            "--protocol: 'bogus' is not one of",
         ),
     ]:
         run = ost_up(*args)
@@ -147,5 +147,5 @@ def test_background_run_that_cannot_start_says_so(tmp_path):
 
 def test_help_prints_usage_only():
     out = subprocess.run(["bash", str(UP), "--help"], capture_output=True, text=True, timeout=30)
-    assert out.returncode == 0 and out.stdout.startswith("usage: ost_up.sh")
+    assert out.returncode == 0 and out.stdout.startswith("usage: ost up")
     assert "set -uo" not in out.stdout and "#" not in out.stdout

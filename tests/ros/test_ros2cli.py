@@ -12,6 +12,7 @@ ost_ros team.launch.py`` runs a whole team — every result equal to ``ost sim``
 from __future__ import annotations
 
 import json
+import re
 import os
 import shutil
 import signal
@@ -239,3 +240,30 @@ def test_ros2_launch_runs_the_team(tmp_path, domain):
     )
     assert replay.returncode == 0, replay.stderr
     assert json.loads(replay.stdout) == json.loads(Path(result).read_text())
+
+
+def test_ros2_launch_takes_the_options_of_ost_up(domain):
+    from ost_ros.runconfig import options
+
+    shown = subprocess.run(
+        [str(ROS2), "launch", "ost_ros", "team.launch.py", "--show-args"],
+        capture_output=True,
+        text=True,
+        env=cli_env(domain),
+        timeout=60,
+    )
+    assert shown.returncode == 0, shown.stderr
+    declared = re.findall(r"^    '(\w+)':", shown.stdout, flags=re.M)
+    assert declared == [s.name for s in options()]  # derived from the one run configuration
+    refused = subprocess.run(
+        [str(ROS2), "launch", "ost_ros", "team.launch.py", "agents:=2", "objects:=2", "hosts:=3"],
+        capture_output=True,
+        text=True,
+        env=cli_env(domain),
+        timeout=60,
+    )
+    assert refused.returncode != 0
+    assert (
+        "hosts:= not in the launch file: simulated hosts are made by ost up"
+        in refused.stdout + refused.stderr
+    )

@@ -146,6 +146,6 @@ def test_progress_line_on_a_terminal_only(tmp_path):
         os.close(leader)
     assert p.returncode == 0
     tty = b"".join(chunks).decode(errors="replace")
-    assert "ost_up: step " in tty and "delivered 4/4" in tty
+    assert "ost up: step " in tty and "delivered 4/4" in tty
     quiet = ost_up("--scenario", str(path), "--run-dir", str(tmp_path / "pipe"))
     assert quiet.returncode == 0 and "delivered" not in quiet.stderr

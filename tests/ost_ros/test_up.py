@@ -1,0 +1,143 @@
+"""``ost up --prepare`` (what ost_up.sh calls first): the run directory from one run
+configuration — scenario, keys, each node role's parameter file, the processes, the DDS
+environment — and every refusal one line, exit code 2, nothing left behind. (Runs themselves:
+tests/ros/test_bringup.py.)"""
+
+import shlex
+from pathlib import Path
+
+import pytest
+import yaml
+
+from ost_msgs_py.auth import load_team
+from ost_ros.cli import main as ost
+from ost_ros.commands import bringup
+from ost_ros.runconfig import AGENT, WORLD, of_node
+
+
+def prepare(tmp_path: Path, *args: str) -> Path:
+    assert ost(["up", "--prepare", "--run-dir", str(tmp_path / "run"), *args]) == 0
+    return tmp_path / "run"
+
+
+@pytest.fixture(autouse=True)
+def _release_domains(monkeypatch, tmp_path):
+    """Domain locks of these prepared-but-never-run directories go to a scratch place."""
+    monkeypatch.setattr(bringup, "DOMAIN_LOCKS", tmp_path / "locks")
+
+
+def test_the_run_directory_of_a_generated_scenario(tmp_path, capsys):
+    d = prepare(tmp_path, "--agents", "4", "--objects", "6", "--seed", "2", "--width", "30", "--height", "12",
+                "--nmax", "3", "--protocol", "ncp", "--ncp-delta", "0.5", "--kill-agent", "2:40")  # fmt: skip
+    assert capsys.readouterr().out.strip() == str(d.resolve())
+    ost(["generate", "--agents", "4", "--objects", "6", "--seed", "2", "--width", "30", "--height", "12",
+         "--nmax", "3"])  # fmt: skip
+    assert (d / "scenario.yaml").read_text() == capsys.readouterr().out  # `ost generate`'s scenario
+    assert sorted(load_team(d / "keys").keys) == [-1, 0, 1, 2, 3]  # the world and every agent
+    agent = yaml.safe_load((d / "agent.params.yaml").read_text())["/**"]["ros__parameters"]
+    world = yaml.safe_load((d / "world.params.yaml").read_text())["/**"]["ros__parameters"]
+    assert set(agent) == {s.name for s in of_node(AGENT)} and set(world) == {s.name for s in of_node(WORLD)}
+    assert (agent["protocol"], agent["ncp_delta"], agent["keys"]) == ("ncp", 0.5, str(d.resolve() / "keys"))
+    assert (world["result_file"], world["ready_file"]) == (
+        str(d.resolve() / "result.json"),
+        str(d.resolve() / "ready"),
+    )
+    lines = [line.split("\t") for line in (d / "processes").read_text().splitlines()]
+    assert [name for name, _host, _cmd in lines] == ["world", "agent_0", "agent_1", "agent_2", "agent_3"]
+    agent_2 = shlex.split(lines[3][2])
+    assert agent_2[-4:] == ["-p", "agent_id:=2", "-p", "die_at_step:=40"]
+    env = (d / "env.sh").read_text()
+    assert "ROS_DOMAIN_ID=" in env and "fastdds_localhost_udp.xml" in env
+    run = bringup.Run.load(d)
+    assert run.ids == [0, 1, 2, 3] and run.config["ncp_delta"] == 0.5
+
+
+def test_a_team_replaces_the_scenarios(tmp_path):
+    ost(
+        [
+            "generate",
+            "--agents",
+            "3",
+            "--objects",
+            "4",
+            "--seed",
+            "1",
+            "--nmax",
+            "3",
+            "-o",
+            str(tmp_path / "s.yaml"),
+        ]
+    )
+    d = prepare(tmp_path, "--scenario", str(tmp_path / "s.yaml"), "--agents", "5", "--protocol", "hcp")
+    assert [line.split("\t")[0] for line in (d / "processes").read_text().splitlines()][-1] == "agent_4"
+    world = yaml.safe_load((d / "world.params.yaml").read_text())["/**"]["ros__parameters"]
+    assert world["agents"] == 5 and world["scenario"] == str((tmp_path / "s.yaml").resolve())
+
+
+@pytest.mark.parametrize(
+    ("args", "text"),
+    [
+        (["--agents", "4", "--objects", "4", "--protocol", "bogus"], "--protocol: 'bogus' is not one of"),
+        (["--agents", "4", "--objects", "4", "--protocol", "hcp", "--coordination", "coordinator"],
+         "--protocol: the coordinator organisation"),
+        (["--scenario", "{missing}"], "--scenario: "),
+        (["--scenario", "{bad}"], "invalid YAML at line"),
+        (["--agents", "2", "--objects", "2", "--width", "0"], "--width: must be at least 1"),
+        (["--agents", "2", "--objects", "2", "--ci", "0"], "--ci: must be at least 1"),
+        (["--agents", "2", "--objects", "2", "--record", "x.bag"], "--record: 'x.bag' must end in .mcap"),
+        (["--agents", "2", "--objects", "2", "--namespace", "a-b"], "--namespace: 'a-b' is not a ROS"),
+        (["--agents", "2", "--objects", "2", "--bogus"], "unrecognized arguments: --bogus"),
+    ],
+)  # fmt: skip
+def test_errors_are_one_line_exit_2_and_leave_nothing(tmp_path, capsys, args, text):
+    (tmp_path / "bad.yaml").write_text("grid: {width: 3\nobjects: [")
+    paths = {"missing": str(tmp_path / "none.yaml"), "bad": str(tmp_path / "bad.yaml")}
+    assert exit_code(["up", "--prepare", *(a.format(**paths) for a in args)]) == 2
+    err = capsys.readouterr()
+    assert text in err.err and len(err.err.strip().splitlines()) == 1 and not err.out
+    assert not list((tmp_path / "locks").glob("*"))  # no domain kept
+
+
+def exit_code(argv: list[str]) -> int:
+    """What ``ost ARGV`` exits with (argparse itself exits on a bad flag)."""
+    try:
+        return ost(argv)
+    except SystemExit as exc:
+        return int(exc.code or 0)
+
+
+def test_a_refused_run_removes_the_directory_it_made(tmp_path, monkeypatch, capsys):
+    made = []
+    real = bringup.tempfile.mkdtemp
+
+    def mkdtemp(**kw):
+        made.append(real(dir=tmp_path, prefix="ost_run."))
+        return made[-1]
+
+    monkeypatch.setattr(bringup.tempfile, "mkdtemp", mkdtemp)
+    assert ost(["up", "--prepare", "--scenario", str(tmp_path / "none.yaml")]) == 2
+    assert made and not Path(made[0]).exists()
+
+
+def test_yaml_loads_as_pyyaml_safe_load(tmp_path):
+    from ost_ros.yamlload import safe_load
+
+    ost(
+        [
+            "generate",
+            "--agents",
+            "3",
+            "--objects",
+            "5",
+            "--seed",
+            "4",
+            "--nmax",
+            "3",
+            "-o",
+            str(tmp_path / "s.yaml"),
+        ]
+    )
+    text = (tmp_path / "s.yaml").read_text()
+    assert safe_load(text) == yaml.safe_load(text)
+    with pytest.raises(yaml.YAMLError):
+        safe_load("a: !!python/object/apply:os.system ['true']")
