@@ -2,21 +2,12 @@
 
     agent_node --ros-args -p agent_id:=3 -p scenario:=run.yaml -p ci:=1
 
-Parameters: ``agent_id``, ``scenario`` (YAML file), ``agents`` (team size override, 0 = the
-file's), ``protocol`` (a name of the protocol registry, :mod:`ost_ros.protocols`), ``ci`` /
-``interval`` / ``area_fraction`` (the coordination trigger), ``coordination`` (``distributed``, or
-``coordinator``: the lowest-id agent alone coordinates), ``lookahead`` (quiet steps planned for
-event skipping; 0 = off); every protocol's own options (the registry's, e.g. NCP's
-``ncp_delta`` and ``ncp_timeout``); ``mute_negotiation_from`` (fault injection: from this step a
-negotiator sends no moves; -1 = never), ``failure_timeout`` (s, the liveliness lease offered
-on ``/ost/agent_<id>/alive``: the world declares this robot failed once its process has been
-gone that long) and ``die_at_step`` (fault injection: the process SIGKILLs itself on the first
-tick of that step or later; -1 = never), ``keys`` (the run's key directory, ``ost keys make``:
-every message it sends is signed with its own key and every one it receives checked; or
-``insecure`` true: none), ``executor`` (``events`` or ``single``, as the world's). The agent
-is built by its protocol's factory (the
-registry) and runs unchanged: the node only orders its calls (:mod:`agent_node.runtime`) and
-moves messages.
+Parameters: the run configuration's agent settings (:func:`ost_ros.runconfig.of_node`, read-only,
+each with its description and range: ``ros2 param describe /ost/agent_0 ci``) — ``agent_id`` and
+``scenario`` first, the protocol and its options, the coordination trigger, fault injection
+(``die_at_step``, ``mute_negotiation_from``), the liveliness lease, keys, executor. The agent is
+built by its protocol's factory (the registry) and runs unchanged: the node only orders its calls
+(the lockstep runtime) and moves messages.
 """
 
 from __future__ import annotations

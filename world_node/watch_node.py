@@ -14,9 +14,10 @@ bookkeeping fed the run's messages — and streams it on a Foxglove WebSocket se
 destinations, robots coloured by state) and ``/ost/robots`` (JSON: step, deliveries, each
 robot's cell, state and load), at most ``foxglove_rate`` times a second.
 
-Parameters (read-only): ``record`` (MCAP path; '': none), ``foxglove_port`` (0: none),
-``foxglove_host`` (default 127.0.0.1), ``foxglove_rate`` (Hz), ``exit_when_done`` (finish the
-file and leave ``grace`` s after the run's result; false: stay until stopped).
+Parameters: the run configuration's watch settings (:func:`ost_ros.runconfig.of_node`,
+read-only): ``record`` (MCAP path; '': none), ``foxglove_port`` (0: none), ``foxglove_host``,
+``foxglove_rate`` (Hz), ``exit_when_done`` (finish the file and leave ``grace`` s after the run's
+result; false: stay until stopped).
 """
 
 from __future__ import annotations

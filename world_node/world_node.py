@@ -2,21 +2,13 @@
 
     world_node --ros-args -p scenario:=run.yaml -p result_file:=/tmp/result.json
 
-Parameters (read-only, with descriptors: ``ros2 param describe /ost/world scenario``):
-``scenario`` (YAML), ``agents`` (team size override, 0 = the file's), ``max_steps`` (0 = the
-simulator's step limit), ``result_file`` (JSON, same as ``ost sim --json``; '' = none),
-``event_skipping`` (execute agents' plans for quiet steps), ``marker_every`` (publish markers
-every k ticks; 0 = never), ``exit_when_done`` (leave once the agents are gone after the result,
-or after ``linger`` s; false: stay, publishing the result, until stopped), ``checkpoint_file``
-(the truth is written there before every step is published; '' = none), ``resume`` (start from
-that checkpoint: a restarted world node continues the run — it publishes the step it was at
-again, and agents that had already answered answer again) and ``failure_timeout`` (s, the
-liveliness lease the world requests of every agent; an agent whose liveliness is lost and does
-not come back — and that sends nothing — for another such time is declared failed in the
-current step and the survivors re-coordinate; 0 = off), ``keys`` (the run's key directory,
-``ost keys make``: the world signs what it sends with ``world.key`` and drops anything not
-signed by the robot it claims; the run id is the keys') or ``insecure`` (true: no signatures),
-``executor`` (``events``: rclpy's EventsExecutor, the default; ``single``: SingleThreadedExecutor).
+Parameters: the run configuration's world settings (:func:`ost_ros.runconfig.of_node`, read-only,
+each with its description and range: ``ros2 param describe /ost/world scenario``) — the scenario
+and team, the step limit, event skipping, the files it writes for whoever supervises the run
+(``result_file``, ``progress_file``, ``ready_file``, ``checkpoint_file``; ``resume`` continues
+from the checkpoint), the liveliness lease it asks of every agent (``failure_timeout``: a robot
+whose process is gone for about two of them is declared failed and the survivors re-plan),
+``observers``, keys, executor, ``rediscover_s``.
 
 Topics are relative to the node's namespace (default ``/ost``): publishes ``clock`` (sim time:
 step t = t seconds), ``markers``, each agent's ``agent_<i>/tick`` (``ost_msgs/msg/Tick``),
