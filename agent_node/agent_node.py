@@ -7,7 +7,7 @@ each with its description and range: ``ros2 param describe /ost/agent_0 ci``) â€
 ``scenario`` first, the protocol and its options, the coordination trigger, fault injection
 (``die_at_step``, ``mute_negotiation_from``), the liveliness lease, keys, executor. The agent is
 built by its protocol's factory (the registry) and runs unchanged: the node only orders its calls
-(the lockstep runtime) and moves messages.
+(the lockstep runtime, :mod:`ost_ros.lockstep.agent`) and moves messages.
 """
 
 from __future__ import annotations
@@ -19,22 +19,22 @@ import signal
 import sys
 import time
 
-import rclpy
 import yaml
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
 from std_msgs.msg import String
 
-from agent_node import transport as tp
-from agent_node.params import ParameterError, declare_role
-from agent_node.runtime import AgentRuntime, ProtocolViolation
 from ost_msgs_py import wire
-from ost_msgs_py.runtime import Acted, AgentReport, Ready, Resend, RunEnd, Sample, Tick
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.lockstep.agent import AgentRuntime, ProtocolViolation
+from ost_ros.lockstep.messages import Acted, AgentReport, Ready, Resend, RunEnd, Sample, Tick
 from ost_ros.model import Scenario
+from ost_ros.node import transport as tp
+from ost_ros.node.params import ParameterError, declare_role
+from ost_ros.node.run import run_node
+from ost_ros.node.signing import node_auth
 from ost_ros.runconfig import AGENT, ConfigError, RunConfig
 from ost_ros.scenario import ScenarioError, load_scenario, with_team
 from ost_ros.team import TeamInfo
@@ -111,7 +111,7 @@ class AgentRunner:
         self.discovery = tp.Unchanged()  # what it lacks, and since when (the rediscover_s parameter)
         self.rediscover_s = node.get_parameter("rediscover_s").value
         me = runtime.me
-        self.guard = tp.node_auth(node.get_parameter("keys").value, node.get_parameter("insecure").value, me)
+        self.guard = node_auth(node.get_parameter("keys").value, node.get_parameter("insecure").value, me)
         # Peers' samples as received (signed by them): what this agent relays for a peer that a
         # third one lacks (Resend) must carry the peer's own signature. The newest steps only.
         self.originals: dict[int, dict[tuple[int, int], object]] = {}
@@ -397,41 +397,18 @@ def agent_id_from_args(argv: list[str]) -> int | None:
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    code = 0
-    try:
-        # The node's name is agent_<id>; the id is a parameter, read here from the ROS
-        # arguments. (A throw-away bootstrap node did this before: destroying it right after its
-        # creation now and then spun forever inside rcl, hanging the process at start.)
-        agent_id = agent_id_from_args(sys.argv if args is None else args)
-        name = tp.agent_node_name(agent_id) if agent_id is not None else "agent"
-        node = AgentNode(name)
-        runner = node.runner
-        # One executor for the node's life (rclpy.spin_once(node) adds and removes the node on
-        # every call); by default the events executor (transport.EXECUTORS).
-        executor = tp.executor(node, node.get_parameter("executor").value)
-        while rclpy.ok() and not runner.done:
-            executor.spin_once(timeout_sec=0.5)
-        code = runner.exit_code
-    except ParameterError as exc:
-        print(f"agent_node: error: {exc}", file=sys.stderr)
-        node = None
-        code = 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except Exception as exc:  # a parameter of the wrong type, and the like: one line, no traceback
-        if "Parameter" in type(exc).__name__:  # wrong parameter type from --ros-args
-            print(f"agent_node: error: {exc}", file=sys.stderr)
-            code = 2
-        else:
-            raise
-    finally:
-        tp.guard_exit()  # never hang in teardown (see transport.guard_exit)
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    # The node's name is agent_<id>; the id is a parameter, read here from the ROS arguments.
+    # (A throw-away bootstrap node did this before: destroying it right after its creation now
+    # and then spun forever inside rcl, hanging the process at start.)
+    agent_id = agent_id_from_args(sys.argv if args is None else args)
+    name = tp.agent_node_name(agent_id) if agent_id is not None else "agent"
+    return run_node(
+        "agent_node",
+        lambda: AgentNode(name),
+        args,
+        done=lambda node: node.runner.done,
+        code=lambda node: node.runner.exit_code,
+    )
 
 
 if __name__ == "__main__":

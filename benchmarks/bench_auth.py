@@ -17,13 +17,13 @@ import tempfile
 import time
 from collections import defaultdict
 
-from agent_node.runtime import AgentRuntime
 from ost_msgs_py import auth, wire
-from ost_msgs_py.runtime import Sample
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.lockstep import inprocess
+from ost_ros.lockstep.agent import AgentRuntime
+from ost_ros.lockstep.messages import Sample
 from ost_ros.model import Grid
 from ost_ros.scenario import generate_scenario
-from world_node import inprocess
 
 
 def sample_messages(per_type: int) -> dict[str, list]:
@@ -47,7 +47,9 @@ def sample_messages(per_type: int) -> dict[str, list]:
     AgentRuntime.progress = tapped  # type: ignore[method-assign]
     try:
         scenario = generate_scenario(10, 20, 1, Grid(100, 40))
-        inprocess.run_lockstep(scenario, "ccp", CoordinationPolicy(), 64, True, tap=tap)
+        inprocess.run_lockstep(
+            scenario, "ccp", CoordinationPolicy(), 64, True, tap=tap, carry=wire.round_trip
+        )
     finally:
         AgentRuntime.progress = progress  # type: ignore[method-assign]
     return seen

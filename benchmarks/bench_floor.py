@@ -99,7 +99,7 @@ def world(n: int, rounds: int, pattern: str, executor: str, t0: float) -> None:
     for p in ticks:
         p.wait_for_all_acked(Duration(seconds=10))  # delivered before this process goes
     print(json.dumps({"bring_up": bring_up, "times": times}), flush=True)
-    os._exit(0)  # no teardown: rcl now and then hangs in destroy_node (agent_node/transport.py)
+    os._exit(0)  # no teardown: rcl now and then hangs in destroy_node (ost_ros/node/run.py)
 
 
 def agent(i: int, n: int, pattern: str, executor: str) -> None:

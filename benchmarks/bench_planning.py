@@ -14,11 +14,12 @@ import argparse
 import sys
 import time
 
+from ost_msgs_py.wire import round_trip
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate
+from ost_ros.lockstep.inprocess import run_lockstep
 from ost_ros.model import Grid
 from ost_ros.scenario import generate_scenario
-from world_node.inprocess import run_lockstep
 
 RUNS = [
     ("ccp", 10, 20, 1, (500, 200), 10, 1),
@@ -39,7 +40,7 @@ def main() -> int:
         scenario = generate_scenario(n, m, seed, Grid(w, h), nmax)
         policy = CoordinationPolicy(ci=ci)
         cpu = time.process_time()
-        got, world = run_lockstep(scenario, protocol, policy, 64, True)
+        got, world = run_lockstep(scenario, protocol, policy, 64, True, carry=round_trip)
         cpu = time.process_time() - cpu
         same = got.to_dict() == simulate(scenario, protocol, policy).to_dict()
         label = f"{protocol.upper()} N={n} M={m} {w}×{h}" + (f", CI={ci}" if protocol != "hcp" else "")

@@ -44,6 +44,7 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey,
 from nacl.exceptions import BadSignatureError
 from nacl.signing import SigningKey, VerifyKey
 
+from ost_msgs_py.errors import InterfaceError
 from ost_ros.yamlload import safe_load
 
 WORLD = -1  # the world's signer id
@@ -58,7 +59,7 @@ UNSIGNED, FORGED, REPLAYED = "unsigned", "forged", "replayed"
 REASONS = (UNSIGNED, FORGED, REPLAYED)
 
 
-class AuthError(ValueError):
+class AuthError(InterfaceError):
     """Key material that cannot be used; the text names the file and the problem."""
 
 

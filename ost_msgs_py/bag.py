@@ -22,6 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
 
+from ost_msgs_py.errors import InterfaceError
+
 PRIMITIVES = frozenset(
     [
         "bool",
@@ -44,7 +46,7 @@ PRIMITIVES = frozenset(
 SEPARATOR = "=" * 80
 
 
-class BagError(ValueError):
+class BagError(InterfaceError):
     """A recording that cannot be written or read; the text names the file and the problem."""
 
 

@@ -1,20 +1,22 @@
 """The message dataclasses on the ROS wire: conversion to and from the ``ost_msgs`` interfaces.
 
-Every message dataclass of :mod:`ost_msgs_py.messages` and :mod:`ost_msgs_py.runtime` has an
-interface of the same name in the ``ost_msgs`` package (``ost_msgs_py/ost_msgs/msg/``), field for
-field. The converters are built once, from the dataclasses' type hints and the generated
-classes' field types, so a new message needs its ``.msg`` file and its dataclass, no code here.
+Every message dataclass on the wire — the protocols' (:mod:`ost_ros.messages` and each protocol's
+own, as the registry lists them: :func:`ost_ros.protocols.messages`) and the lockstep's
+(:mod:`ost_ros.lockstep.messages`) — has an interface of the same name in the ``ost_msgs``
+package (``ost_msgs_py/ost_msgs/msg/``), field for field. The converters are built once, from
+the dataclasses' type hints and the generated classes' field types, so a new message needs its
+``.msg`` file and its dataclass, no code here.
 
 Field mapping: ``int``/``str``/``bool`` as they are; ``str`` enums as their value (checked on the
 way in); a cell ``tuple[int, int]`` as ``ost_msgs/Cell``; other fixed tuples positionally onto a
 message (``found``: ``ost_msgs/FoundObject``); ``tuple[T, ...]`` as a sequence; nested dataclasses
 as nested messages; ``int | None`` as ``-1`` for None; a plan (a sequence of ``PlanStep``) as
 ``ost_msgs/Plan``, parallel arrays (a 64-step plan would otherwise be 64 messages and 128 cells
-to build and take apart on every action), decoded as :class:`~ost_msgs_py.runtime.PlanColumns`
+to build and take apart on every action), decoded as :class:`~ost_ros.lockstep.messages.PlanColumns`
 (steps built only where read). The dataclasses' ``version`` is the
 interface itself (its type hash), so it is not a field on the wire.
 
-A protocol message travels as a :class:`~ost_msgs_py.runtime.Sample`: the message's fields plus
+A protocol message travels as a :class:`~ost_ros.lockstep.messages.Sample`: the message's fields plus
 ``run``, ``step`` (when it was broadcast) and ``seq`` (its place among everything the sender
 broadcast in that step). Anything that
 does not fit raises :class:`MessageError` naming the field, e.g.
@@ -34,22 +36,23 @@ from typing import Any
 import ost_msgs.msg as ros
 
 from ost_msgs_py import auth
-from ost_msgs_py import messages as _messages
-from ost_msgs_py import runtime as _runtime
-from ost_msgs_py.runtime import PlanColumns, PlanStep, Sample
+from ost_msgs_py.errors import InterfaceError
+from ost_ros import protocols
+from ost_ros.lockstep import messages as _runtime
+from ost_ros.lockstep.messages import PlanColumns, PlanStep, Sample
+from ost_ros.messages import AgentLost
 
 
-class MessageError(ValueError):
+class MessageError(InterfaceError):
     """A message that does not fit its dataclass; the text names the offending field."""
 
 
-# Agent-to-agent messages travel as Samples; WORLD-sent notices only inside Tick/RunEnd.
-PROTOCOL_MESSAGES: tuple[type, ...] = tuple(
-    m for m in _messages.AGENT_MESSAGES if m is not _messages.AgentLost
-)
+# Agent-to-agent messages (every kind a registered protocol broadcasts) travel as Samples; the
+# world's notices (AgentLost) only inside Tick/RunEnd.
+PROTOCOL_MESSAGES: tuple[type, ...] = protocols.messages()
 RUNTIME_MESSAGES: tuple[type, ...] = _runtime.RUNTIME_MESSAGES
 _NOT_ON_WIRE = {"version"}
-_WORLD_FIELDS = {(_messages.AgentLost, "sender")}  # always WORLD: implied by the message kind
+_WORLD_FIELDS = {(AgentLost, "sender")}  # always WORLD: implied by the message kind
 
 _ARRAY_CODES = {"int32": "i", "uint32": "I", "int64": "q", "uint64": "Q"}
 
@@ -232,6 +235,12 @@ def from_ros(msg: Any) -> Any:
     if cls in PROTOCOL_MESSAGES:
         return Sample(value, int(msg.step), int(msg.seq), msg.run)
     return value
+
+
+def round_trip(value: Any) -> Any:
+    """A message as a receiver gets it: through its ``ost_msgs`` interface and back (the
+    lockstep in one process, ``ost_ros.lockstep.inprocess``, with ``carry=round_trip``)."""
+    return from_ros(to_ros(value))
 
 
 def sender_of(msg: Any) -> str:

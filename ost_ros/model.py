@@ -16,9 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ost_msgs_py.messages import ObjectInfo
-
-Cell = tuple[int, int]
+from ost_ros.messages import Cell, ObjectInfo
 
 DEFAULT_WIDTH = 500
 DEFAULT_HEIGHT = 200

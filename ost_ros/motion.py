@@ -6,7 +6,7 @@ one, and every planned travel time equals the Manhattan distance.
 
 from __future__ import annotations
 
-Cell = tuple[int, int]
+from ost_ros.messages import Cell
 
 DIRECTIONS: tuple[Cell, ...] = ((1, 0), (-1, 0), (0, 1), (0, -1))
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ost_msgs_py.messages import Action
 from ost_ros import protocols
+from ost_ros.messages import Action
 from ost_ros.model import Scenario
 from ost_ros.result import RunResult
 from ost_ros.world import World

@@ -287,6 +287,8 @@ def parse_text(s: Setting, text: str) -> Any:
                 if s.parse is not None:
                     s.parse(x)
             return items
+    except ConfigError:
+        raise
     except ValueError as exc:
         raise ConfigError(s.name, str(exc) if s.parse else f"invalid {s.type.__name__} {text!r}") from None
     return text

@@ -11,8 +11,12 @@ from functools import lru_cache
 
 import numpy as np
 
-from ost_ros.model import Scenario, Subarea
+from ost_ros.model import Cell, Scenario, Subarea
 from ost_ros.search import agent_plan, route
+
+# The sensor's 3×3 block around the agent, as offsets, in the order the world lists what it
+# senses (an observation's order, which a planned step's expected reading must match).
+BLOCK: tuple[Cell, ...] = tuple((dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1))
 
 
 def sweep_paths(scenario: Scenario) -> list[np.ndarray]:

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from typing import Any
 
+from ost_ros.errors import OstError
 
-class FieldError(ValueError):
+
+class FieldError(OstError):
     """Invalid input; the message starts with the offending field, e.g. ``objects[3].location``."""
 
 

@@ -20,12 +20,11 @@ from collections import defaultdict
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from ost_msgs_py.messages import FINISH_STATE, SEARCHING_STATE, Action, ActionKind, ObjectInfo, Observation
+from ost_ros.messages import FINISH_STATE, SEARCHING_STATE, Action, ActionKind, ObjectInfo, Observation
 from ost_ros.model import Cell, Scenario, can_move, group_period
 from ost_ros.motion import DIRECTIONS, apply
 from ost_ros.result import AgentRecord, ObjectRecord, RunResult
-
-_SENSE = tuple((dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1))
+from ost_ros.sensing import BLOCK
 
 
 @dataclass
@@ -65,7 +64,7 @@ class World:
         """Ids of the objects in the agent's 3×3 block, in the order ``observe`` lists them."""
         pos = self.positions[agent_id]
         out: list[int] = []
-        for dx, dy in _SENSE:
+        for dx, dy in BLOCK:
             ids = self._at.get((pos[0] + dx, pos[1] + dy))
             if ids:
                 out.extend(sorted(ids))

@@ -8,7 +8,7 @@ crossed DDS (``raw``): the recording holds exactly what the nodes said. Started 
 counted as an observer (the world and agents' ``observers`` parameter), it is matched with every
 lockstep writer before step 0, so nothing of the run is missing.
 
-The live view follows the run with :class:`world_node.follow.RunFollower` — the world's own
+The live view follows the run with :class:`ost_ros.lockstep.follow.RunFollower` — the world's own
 bookkeeping fed the run's messages — and streams it on a Foxglove WebSocket server
 (``foxglove-sdk``): ``/ost/scene`` (``foxglove.SceneUpdate``: grid, subareas, objects by state,
 destinations, robots coloured by state) and ``/ost/robots`` (JSON: step, deliveries, each
@@ -27,18 +27,17 @@ import sys
 import time
 from typing import Any
 
-import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from agent_node import transport as tp
-from agent_node.params import ParameterError, declare_role
 from ost_msgs_py import bag, wire
-from ost_msgs_py.runtime import Acted, AgentReport, Ready, RunEnd, RunInfo, Tick
+from ost_ros.lockstep.follow import FollowError, RunFollower
+from ost_ros.lockstep.messages import Acted, AgentReport, Ready, RunEnd, RunInfo, Tick
+from ost_ros.node import transport as tp
+from ost_ros.node.params import ParameterError, declare_role
+from ost_ros.node.run import run_node
 from ost_ros.runconfig import WATCH
 from ost_ros.world import World
-from world_node.follow import FollowError, RunFollower
 from world_node.live import LiveView
 
 FOLLOWED = {wire.type_name(c) for c in (RunInfo, Ready, Tick, Acted, RunEnd, AgentReport)}
@@ -167,34 +166,15 @@ class WatchNode(Node):
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    code = 0
-    try:
-        node = WatchNode()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        while rclpy.ok() and not node.done:
-            executor.spin_once(timeout_sec=0.5)
-    except (ParameterError, bag.BagError) as exc:
-        print(f"watch_node: error: {exc}", file=sys.stderr)
-        code = 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        code = 0  # stopped: the recording is closed below
-    except Exception as exc:
-        if "Parameter" in type(exc).__name__:
-            print(f"watch_node: error: {exc}", file=sys.stderr)
-            code = 2
-        else:
-            raise
-    finally:
-        if node is not None:
-            node.close()
-        tp.guard_exit()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    return run_node(
+        "watch_node",
+        WatchNode,
+        args,
+        done=lambda node: node.done,
+        executor_name=lambda _node: "single",
+        errors=(bag.BagError,),  # an unwritable recording
+        close=lambda node: node.close(),  # the recording is closed, also when stopped
+    )
 
 
 if __name__ == "__main__":

@@ -31,24 +31,24 @@ import sys
 import time
 from pathlib import Path
 
-import rclpy
 from builtin_interfaces.msg import Time
 from rclpy.event_handler import SubscriptionEventCallbacks
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
-from agent_node import transport as tp
-from agent_node.params import ParameterError, declare_role
 from ost_msgs_py import auth, wire
-from ost_msgs_py.runtime import Acted, AgentReport, Ready, RunEnd, RunInfo, Tick
 from ost_ros.bounds import lower_bound
+from ost_ros.lockstep.messages import Acted, AgentReport, Ready, RunEnd, RunInfo, Tick
+from ost_ros.lockstep.world import ProtocolViolation, WorldRuntime
+from ost_ros.node import transport as tp
+from ost_ros.node.params import ParameterError, declare_role
+from ost_ros.node.run import run_node
+from ost_ros.node.signing import node_auth
 from ost_ros.runconfig import WORLD
 from ost_ros.scenario import ScenarioError, dump_scenario, load_scenario, with_team
 from world_node.markers import world_markers
-from world_node.runtime import ProtocolViolation, WorldRuntime
 
 # A step taking longer than this is reported (who has not acted yet).
 STALL_S = 5.0
@@ -73,7 +73,7 @@ class WorldNode(Node):
             raise ParameterError(f"scenario: {exc}") from None
         self.scenario = scenario
         self.fingerprint = tp.scenario_fingerprint(scenario)
-        self.guard = tp.node_auth(p["keys"], p["insecure"], auth.WORLD)
+        self.guard = node_auth(p["keys"], p["insecure"], auth.WORLD)
         # A fresh id per run: messages of any other run (a stray node) are told apart. A secure
         # run's id comes with its keys: every process knows it from team.yaml.
         run = self.guard.signer.run if self.guard.signer is not None else secrets.token_hex(6)
@@ -542,33 +542,15 @@ def process_age() -> float | None:
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    code = 0
-    try:
-        node = WorldNode()
-        # One executor for the node's life; by default the events executor (transport.EXECUTORS).
-        executor = tp.executor(node, node.get_parameter("executor").value)
-        while rclpy.ok() and not node.done:
-            executor.spin_once(timeout_sec=0.5)
-        code = 0 if node.rt.ended is not None and node.rt.ended.completed else 1
-    except ParameterError as exc:
-        print(f"world_node: error: {exc}", file=sys.stderr)
-        code = 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        code = 130
-    except Exception as exc:
-        if "Parameter" in type(exc).__name__:  # wrong parameter type from --ros-args
-            print(f"world_node: error: {exc}", file=sys.stderr)
-            code = 2
-        else:
-            raise
-    finally:
-        tp.guard_exit()  # never hang in teardown (see transport.guard_exit)
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    return run_node(
+        "world_node",
+        WorldNode,
+        args,
+        done=lambda node: node.done,
+        # 0: the run completed; 1: it ended otherwise (step limit, every agent gone)
+        code=lambda node: 0 if node.rt.ended is not None and node.rt.ended.completed else 1,
+        interrupted=130,
+    )
 
 
 if __name__ == "__main__":

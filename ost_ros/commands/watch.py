@@ -1,9 +1,9 @@
 """``ost record info`` and ``ost replay``: recordings of DDS runs (``ost_up.sh --record``).
 
 A recording is a rosbag2-style MCAP file (:mod:`ost_msgs_py.bag`). ``ost replay`` rebuilds the
-run from it with the world's own bookkeeping fed the recorded messages
-(:mod:`world_node.follow`) — the per-robot table, the timeline (``--plot``) and the animation
-(``--animate``) — and checks the rebuilt result against the one the world published. No agent
+run from it with the world's own bookkeeping fed the recorded messages (:mod:`ost_msgs_py.replay`,
+:mod:`ost_ros.lockstep.follow`) — the per-robot table, the timeline (``--plot``) and the
+animation (``--animate``) — and checks the rebuilt result against the one the world published. No agent
 runs and nothing is simulated.
 """
 
@@ -77,8 +77,9 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 def cmd_replay(args: argparse.Namespace) -> int:
     from ost_msgs_py.bag import BagError
+    from ost_msgs_py.replay import replay
+    from ost_ros.lockstep.follow import FollowError
     from ost_ros.plot import Timeline
-    from world_node.follow import FollowError, replay
 
     if args.animate:
         check_animation(args)

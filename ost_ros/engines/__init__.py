@@ -1,8 +1,9 @@
 """Engines: three ways to run a scenario that give the same result.
 
 - ``step`` (:mod:`.step`): the reference — every agent every step, as over DDS;
-- ``event`` for protocols whose agents hold the same public state (CCP, NCP): the run computed
-  from its events by one comm module (:mod:`.analytic`);
+- ``event`` for protocols whose agents hold the same public state (capability
+  ``team_knowledge``: CCP, NCP, the auction): the run computed from its events by one comm
+  module (:mod:`.analytic`);
 - ``event`` for every other protocol: jumps from decision to decision on the agents' own plans
   (:mod:`.event`).
 
@@ -84,7 +85,7 @@ def simulate(
         if needs_steps:
             engine = "step"
     if choose_engine(scenario, engine) == "event":
-        if spec.team_comm is not None:
+        if spec.capabilities.team_knowledge:
             result = run_analytic(scenario, spec, policy, settings)
             if max_steps is None or result.steps <= max_steps:
                 return result

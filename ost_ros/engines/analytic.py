@@ -1,5 +1,6 @@
-"""The analytic engine of protocols in which every agent holds the same public state (CCP, NCP:
-capability ``team_knowledge``): one comm module computes the whole run. Results are identical to
+"""The analytic engine of protocols in which every agent holds the same public state (capability
+``team_knowledge``: CCP, NCP, the auction): one comm module — the spec's ``team_comm``, speaking
+for every agent — computes the whole run. Results are identical to
 the step engine's (property-tested).
 
 Planned = executed, so the schedule determines execution and the run follows from its events
@@ -17,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from ost_msgs_py.messages import AgentMessage, ObjectFound, SearchDone
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.messages import AgentMessage, ObjectFound, SearchDone
 from ost_ros.model import Cell, Scenario, arrival, arrival_np, manhattan
 from ost_ros.protocols.base import ProtocolSpec
 from ost_ros.result import AgentRecord, ObjectRecord, RunResult

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ost_msgs_py.messages import Action, AgentMessage, ObjectInfo
 from ost_ros.engines.common import finish_result, step_limit
+from ost_ros.messages import Action, AgentMessage, ObjectInfo
 from ost_ros.model import Cell, Scenario, arrival
 from ost_ros.protocols import plans as pl
 from ost_ros.protocols.base import ProtocolAgent

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from ost_msgs_py.messages import Action, AgentLost, AgentMessage
 from ost_ros.engines.common import finish_result, step_limit
+from ost_ros.messages import Action, AgentLost, AgentMessage
 from ost_ros.model import Scenario
 from ost_ros.protocols.base import ProtocolAgent
 from ost_ros.result import RunResult

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ost_ros.errors import OstError
 
-class NegotiationError(ValueError):
+
+class NegotiationError(OstError):
     """Invalid negotiation input (task, discount factor, team, file). Message is one line."""

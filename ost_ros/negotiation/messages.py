@@ -1,15 +1,22 @@
 """Offers as plain data: what one negotiator sends another.
 
-Everything is ints, floats, strings and lists of floats, so a message survives JSON or a DDS
-sequence<double> unchanged. The task type decodes ``params`` (polygon vertices x1,y1,x2,y2,...
-or claimed target coordinates) — partners never see each other's private rewards.
+:class:`Offer` (the library's negotiations): everything is ints, floats, strings and lists of
+floats, so a message survives JSON or a DDS sequence<double> unchanged. The task type decodes
+``params`` (polygon vertices x1,y1,x2,y2,... or claimed target coordinates) — partners never see
+each other's private rewards.
+
+:class:`NegotiationOffer` (the slot negotiation, :mod:`.slots`): one move as an OST agent
+broadcasts it — NCP's message (``ost_ros.protocols.ncp`` lists it; on the wire
+``ost_msgs/msg/NegotiationOffer``).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
+
+from ost_ros.messages import SCHEMA_VERSION, AgentMessage
 
 from .errors import NegotiationError
 
@@ -65,3 +72,24 @@ class Offer:
             if isinstance(exc, NegotiationError):
                 raise
             raise NegotiationError(f"malformed offer message: {exc}") from None
+
+
+@dataclass(frozen=True)
+class NegotiationOffer(AgentMessage):
+    """NCP: one negotiator's move in round ``round`` of negotiation ``negotiation``.
+
+    ``offer`` is the offer vector: the ids of the objects in which the sender claims one carrying
+    slot. ``kind`` is ``offer`` (a claim, possibly unchanged) or ``exit`` (the sender leaves with
+    ``offer``, which nobody contests any more). ``receiver`` is -1: every move goes to everyone.
+    Carried on ``<ns>/negotiation_offer`` by the ROS runtime.
+    """
+
+    TYPE: ClassVar[str] = "negotiation_offer"
+    sender: int
+    t: int
+    negotiation: int
+    round: int
+    kind: str
+    offer: tuple[int, ...] = ()
+    receiver: int = BROADCAST
+    version: int = SCHEMA_VERSION

@@ -32,6 +32,8 @@ import shapely
 from scipy import ndimage
 from shapely.geometry import box
 
+from ost_ros.messages import Cell
+
 from .agents import AgentSpec
 from .errors import NegotiationError
 from .multiparty import NegotiationResult, negotiate
@@ -39,7 +41,6 @@ from .proposals import AreaSearch
 from .rewards import AreaReward
 from .tasks import AreaTask
 
-Cell = tuple[int, int]
 Rect = tuple[int, int, int, int]  # x0, y0, x1, y1 in cells, inclusive
 
 RULES = ("patience", "reward")

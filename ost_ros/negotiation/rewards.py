@@ -15,7 +15,6 @@ import shapely
 from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 
-from .errors import NegotiationError
 from .tasks import AreaTask, TargetTask
 
 
@@ -149,8 +148,3 @@ def global_coverage(task: AreaTask | TargetTask, shares: Sequence) -> float:
     inside = [task.inside(s) for s in shares]
     total = sum(task.dim(s) for s in inside)
     return total - sum(task.dim(task.overlap(a, b)) for a, b in combinations(inside, 2))
-
-
-def check_reward_matches(task: AreaTask | TargetTask, reward: AreaReward | TargetReward) -> None:
-    if isinstance(task, AreaTask) != isinstance(reward, AreaReward):
-        raise NegotiationError(f"reward {type(reward).__name__} does not fit a {task.kind} task")

@@ -32,8 +32,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ost_msgs_py.messages import NegotiationOffer, ObjectInfo
+from ost_ros.messages import ObjectInfo
 from ost_ros.model import Scenario, arrival_np
+from ost_ros.negotiation.messages import NegotiationOffer
 
 from .errors import NegotiationError
 from .protocol import claim_size, validate_delta

@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.messages import AgentMessage
 from ost_ros.model import Scenario
 from ost_ros.protocols import auction, ccp, hcp, ncp
 from ost_ros.protocols.base import Capabilities, Option, ProtocolAgent, ProtocolError, ProtocolSpec
@@ -30,6 +31,7 @@ __all__ = [
     "check",
     "get",
     "make_agents",
+    "messages",
     "names",
     "option_default",
     "settings_from",
@@ -38,6 +40,12 @@ __all__ = [
 
 def names() -> tuple[str, ...]:
     return tuple(REGISTRY)
+
+
+def messages() -> tuple[type[AgentMessage], ...]:
+    """Every agent message kind the registered protocols broadcast (their specs' ``messages``),
+    each once, in registry order: what the wire converts and a topic each over DDS."""
+    return tuple(dict.fromkeys(m for spec in REGISTRY.values() for m in spec.messages))
 
 
 def get(name: str) -> ProtocolSpec:

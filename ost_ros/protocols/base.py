@@ -1,8 +1,8 @@
 """What a cooperation protocol is to the rest of the system: the agent interface every engine
 and node drives, and the spec the registry (:mod:`ost_ros.protocols`) holds for each protocol.
 
-An agent touches the world only through :class:`~ost_msgs_py.messages.Observation` in and
-:class:`~ost_msgs_py.messages.Action` out, and other agents only through messages; so the same
+An agent touches the world only through :class:`~ost_ros.messages.Observation` in and
+:class:`~ost_ros.messages.Action` out, and other agents only through messages; so the same
 object runs in the step engine, the event engine and inside a ROS 2 node. Per step t:
 
 1. ``act(obs)`` — sense, decide, move: this step's action;
@@ -22,14 +22,15 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from ost_msgs_py.messages import Action, AgentMessage, ObjectInfo, Observation
 from ost_ros.coordination import Assignment, CoordinationPolicy
+from ost_ros.errors import OstError
+from ost_ros.messages import Action, AgentMessage, ObjectInfo, Observation
 from ost_ros.model import Cell
 from ost_ros.protocols.plans import Plan, Segment
 from ost_ros.team import TeamInfo
 
 
-class ProtocolError(ValueError):
+class ProtocolError(OstError):
     """A protocol name or a combination of options the protocol cannot run (one line)."""
 
 
@@ -111,7 +112,7 @@ class Capabilities:
     heterogeneous: bool = False  # robots slower than one cell per step
     triggers: bool = False  # the coordination triggers (CI, interval, area)
     team_knowledge: bool = False  # every agent holds the same public state: one comm
-    # module computes the whole run (analytic engine)
+    # module (the spec's team_comm) computes the whole run (the analytic engine)
 
 
 @dataclass(frozen=True)
@@ -136,7 +137,7 @@ class ProtocolSpec:
     label: str  # a few words: "cost-balanced"
     title: str  # one line, for --help and listings
     make_agent: Callable[[int, TeamInfo, CoordinationPolicy, Any], ProtocolAgent]
-    messages: tuple[type, ...]  # the agent messages it broadcasts (over DDS: a topic each)
+    messages: tuple[type[AgentMessage], ...]  # the agent messages it broadcasts (over DDS: a topic each)
     states: tuple[str, ...]  # its global states, in FSA order
     capabilities: Capabilities = Capabilities()
     settings: type | None = None  # its settings dataclass (shared by the team)
@@ -146,6 +147,10 @@ class ProtocolSpec:
     silence: Callable[[Any, int], None] | None = None
     # fault injection (tests, demos): the agent sends no protocol moves from the given step on
     note: str = ""  # for reports: what it is, beside the paper
+
+    def __post_init__(self) -> None:
+        if self.capabilities.team_knowledge != (self.team_comm is not None):
+            raise ProtocolError(f"{self.name}: team_knowledge and a team_comm go together")
 
     def default_settings(self) -> Any:
         return None if self.settings is None else self.settings()

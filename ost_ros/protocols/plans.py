@@ -7,7 +7,7 @@ places that skip steps:
 
 - the event engine (:mod:`ost_ros.engines.event`) jumps over the first segment of every agent at
   once (:func:`advance`), then tells each agent (``skip``);
-- the DDS runtime (:mod:`agent_node.runtime`) sends the whole plan, step by step (:func:`rows`),
+- the DDS runtime (:mod:`ost_ros.lockstep.agent`) sends the whole plan, step by step (:func:`rows`),
   to the world, which executes it as long as what it observes is what the plan expects.
 
 A plan is valid from the step it was made for, as long as no message reaches the agent and its
@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, replace
 
-from ost_msgs_py.messages import ActionKind
+from ost_ros.messages import ActionKind
 from ost_ros.model import Cell, can_move, moves_between, walk
 from ost_ros.motion import apply, step_toward
 

@@ -16,7 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from ost_msgs_py.messages import FINISH_STATE
+from ost_ros.errors import OstError
+from ost_ros.messages import FINISH_STATE
 from ost_ros.model import Scenario
 from ost_ros.plot import state_colours
 from ost_ros.result import RunResult
@@ -27,7 +28,7 @@ FORMATS = (".gif", ".mp4")
 LABEL_OBJECTS_UP_TO = 12
 
 
-class AnimationError(ValueError):
+class AnimationError(OstError):
     """The animation cannot be written (format, missing encoder, file); the text says why."""
 
 

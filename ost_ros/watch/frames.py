@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ost_msgs_py.messages import SEARCHING_STATE, Action, ActionKind
+from ost_ros.messages import SEARCHING_STATE, Action, ActionKind
 from ost_ros.model import Scenario
 from ost_ros.world import World
 

@@ -7,8 +7,9 @@ import ost_msgs.msg as ros
 import pytest
 
 from ost_msgs_py import auth, wire
-from ost_msgs_py.messages import Action, ActionKind, Observation, Selection
-from ost_msgs_py.runtime import Acted, Sample, Tick
+from ost_ros.lockstep.messages import Acted, Sample, Tick
+from ost_ros.messages import Action, ActionKind, Observation
+from ost_ros.protocols.ccp.messages import Selection
 
 
 @pytest.fixture(scope="module")

@@ -8,11 +8,11 @@ from mcap_ros2._dynamic import generate_dynamic
 from mcap_ros2.decoder import DecoderFactory
 from rclpy.serialization import serialize_message
 
-from agent_node import transport as tp
 from ost_msgs_py import bag, wire
-from ost_msgs_py.messages import AgentLost, ObjectInfo, Observation
-from ost_msgs_py.runtime import RUNTIME_MESSAGES, Tick
 from ost_msgs_py.wire import PROTOCOL_MESSAGES
+from ost_ros.lockstep.messages import RUNTIME_MESSAGES, Tick
+from ost_ros.messages import AgentLost, ObjectInfo, Observation
+from ost_ros.node import transport as tp
 
 
 @pytest.mark.parametrize("cls", [*PROTOCOL_MESSAGES, *RUNTIME_MESSAGES], ids=lambda c: c.__name__)

@@ -10,26 +10,8 @@ from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message, serialize_message
 
 from ost_msgs_py import wire
-from ost_msgs_py.messages import (
-    AGENT_MESSAGES,
-    Action,
-    ActionKind,
-    AgentLost,
-    HelpAccept,
-    HelpOffer,
-    HelpRelease,
-    HelpRequest,
-    NegotiationOffer,
-    ObjectFound,
-    ObjectInfo,
-    Observation,
-    ScheduledObject,
-    ScheduleUpdate,
-    SearchDone,
-    Selection,
-    Status,
-)
-from ost_msgs_py.runtime import (
+from ost_ros import protocols
+from ost_ros.lockstep.messages import (
     RUNTIME_MESSAGES,
     Acted,
     AgentReport,
@@ -40,6 +22,20 @@ from ost_msgs_py.runtime import (
     Sample,
     Tick,
 )
+from ost_ros.messages import (
+    Action,
+    ActionKind,
+    AgentLost,
+    ObjectFound,
+    ObjectInfo,
+    Observation,
+    ScheduledObject,
+    SearchDone,
+    Status,
+)
+from ost_ros.negotiation.messages import NegotiationOffer
+from ost_ros.protocols.ccp.messages import ScheduleUpdate, Selection
+from ost_ros.protocols.hcp.messages import HelpAccept, HelpOffer, HelpRelease, HelpRequest
 
 ints = st.integers(-5, 10**6)
 ids = st.integers(-1, 10**4)
@@ -138,7 +134,7 @@ def test_every_message_round_trips_through_cdr(value):
 
 
 def test_every_dataclass_has_its_interface():
-    for cls in (*AGENT_MESSAGES, *RUNTIME_MESSAGES):
+    for cls in (*protocols.messages(), AgentLost, *RUNTIME_MESSAGES):
         fields = wire.ros_type(cls).get_fields_and_field_types()
         own = (
             {f.name for f in dataclasses.fields(cls)}

@@ -28,21 +28,12 @@ from std_msgs.msg import String
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from agent_node import transport as tp
 from ost_msgs_py import auth, wire
-from ost_msgs_py.messages import (
-    Action,
-    ActionKind,
-    ObjectFound,
-    ObjectInfo,
-    Observation,
-    ScheduleUpdate,
-    SearchDone,
-    Selection,
-    Status,
-)
-from ost_msgs_py.runtime import Acted, AgentReport, Ready, Resend, RunEnd, RunInfo, Sample, Tick
 from ost_ros import protocols
+from ost_ros.lockstep.messages import Acted, AgentReport, Ready, Resend, RunEnd, RunInfo, Sample, Tick
+from ost_ros.messages import Action, ActionKind, ObjectFound, ObjectInfo, Observation, SearchDone, Status
+from ost_ros.node import transport as tp
+from ost_ros.protocols.ccp.messages import ScheduleUpdate, Selection
 
 
 def forged_messages(

@@ -7,11 +7,11 @@ import subprocess
 import sys
 import time
 
-from agent_node import transport as tp
 from ost_msgs_py import wire
-from ost_msgs_py.runtime import Tick
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.lockstep.messages import Tick
 from ost_ros.model import Grid
+from ost_ros.node import transport as tp
 from ost_ros.scenario import dump_scenario, generate_scenario
 from tests.ros.dds_helpers import BIN, INSECURE, reference, ros_env
 
@@ -32,7 +32,7 @@ TOPICS = expected_topics("ccp", 2)
 INJECT = r"""
 import time, rclpy
 import ost_msgs.msg as ros
-from agent_node import transport as tp
+from ost_ros.node import transport as tp
 rclpy.init()
 node = rclpy.create_node("injector", namespace=tp.NAMESPACE)
 acted = ros.Acted(); acted.action.agent = 1; acted.action.kind = "jump"

@@ -15,10 +15,11 @@ from tests.ros.dds_helpers import ost_up, reference, result_json, ros_env
 
 STRAY = r"""
 import sys, time, rclpy
-from agent_node import transport as tp
 from ost_msgs_py import wire
-from ost_msgs_py.messages import Action, ActionKind, Selection
-from ost_msgs_py.runtime import Acted, Sample
+from ost_ros.lockstep.messages import Acted, Sample
+from ost_ros.messages import Action, ActionKind
+from ost_ros.node import transport as tp
+from ost_ros.protocols.ccp.messages import Selection
 rclpy.init()
 node = rclpy.create_node("stray", namespace=tp.NAMESPACE)
 batch = node.create_publisher(wire.ros_type(Selection), tp.message_topic(Selection), tp.LOCKSTEP_QOS)

@@ -12,8 +12,8 @@ ost_ros team.launch.py`` runs a whole team — every result equal to ``ost sim``
 from __future__ import annotations
 
 import json
-import re
 import os
+import re
 import shutil
 import signal
 import subprocess

@@ -7,9 +7,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from ost_msgs_py.messages import Award, Bid, ObjectFound, SearchDone, Status
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.messages import ObjectFound, SearchDone, Status
 from ost_ros.protocols.auction.comm import AuctionComm
+from ost_ros.protocols.auction.messages import Award, Bid
 from ost_ros.protocols.base import Capabilities, ProtocolSpec
 from ost_ros.protocols.shared.agent import STATES, ScheduleAgent
 from ost_ros.team import TeamInfo

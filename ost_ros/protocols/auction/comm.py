@@ -25,9 +25,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from ost_msgs_py.messages import AgentMessage, Award, Bid, ObjectFound
 from ost_ros.coordination import Assignment, carry_times
+from ost_ros.messages import AgentMessage, ObjectFound
 from ost_ros.model import arrival, manhattan
+from ost_ros.protocols.auction.messages import Award, Bid
 from ost_ros.protocols.ccp.comm import CcpComm, CommState
 
 

@@ -6,11 +6,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ost_msgs_py.messages import ObjectFound, ScheduleUpdate, SearchDone, Selection, Status
 from ost_ros.coordination import ORGANISATIONS, CoordinationPolicy
+from ost_ros.messages import ObjectFound, SearchDone, Status
 from ost_ros.planner import PLANNERS, check_planner
 from ost_ros.protocols.base import Capabilities, Option, ProtocolSpec
 from ost_ros.protocols.ccp.comm import CcpComm
+from ost_ros.protocols.ccp.messages import ScheduleUpdate, Selection
 from ost_ros.protocols.shared.agent import STATES, ScheduleAgent
 from ost_ros.team import TeamInfo
 

@@ -26,18 +26,10 @@ from enum import Enum
 
 import numpy as np
 
-from ost_msgs_py.messages import (
-    AgentLost,
-    AgentMessage,
-    ObjectFound,
-    ScheduledObject,
-    ScheduleUpdate,
-    SearchDone,
-    Selection,
-    Status,
-)
 from ost_ros.coordination import Assignment, CoordinationPolicy, coordinate
+from ost_ros.messages import AgentLost, AgentMessage, ObjectFound, ScheduledObject, SearchDone, Status
 from ost_ros.planner import improve
+from ost_ros.protocols.ccp.messages import ScheduleUpdate, Selection
 from ost_ros.protocols.shared.failures import Recovery
 from ost_ros.protocols.shared.knowledge import Knowledge, QueuedMessages
 from ost_ros.team import TeamInfo

@@ -5,10 +5,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from ost_msgs_py.messages import HelpAccept, HelpOffer, HelpRelease, HelpRequest, SearchDone
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.messages import SearchDone
 from ost_ros.protocols.base import Capabilities, ProtocolSpec
 from ost_ros.protocols.hcp.agent import HcpAgent, HcpState
+from ost_ros.protocols.hcp.messages import HelpAccept, HelpOffer, HelpRelease, HelpRequest
 from ost_ros.team import TeamInfo
 
 

@@ -43,17 +43,13 @@ from dataclasses import replace
 from enum import Enum
 from typing import ClassVar
 
-from ost_msgs_py.messages import (
+from ost_ros.messages import (
     FINISH_STATE,
     SEARCHING_STATE,
     Action,
     ActionKind,
     AgentLost,
     AgentMessage,
-    HelpAccept,
-    HelpOffer,
-    HelpRelease,
-    HelpRequest,
     ObjectInfo,
     Observation,
     SearchDone,
@@ -62,6 +58,7 @@ from ost_ros.model import Cell, manhattan, moves_between
 from ost_ros.motion import step_toward
 from ost_ros.protocols.base import AgentSummary
 from ost_ros.protocols.hcp.comm import HcpComm, HelpGroup
+from ost_ros.protocols.hcp.messages import HelpAccept, HelpOffer, HelpRelease, HelpRequest
 from ost_ros.protocols.plans import NO_PLAN, Plan, Segment
 from ost_ros.search import SearchModule, route, sweep_waypoints
 from ost_ros.team import TeamInfo

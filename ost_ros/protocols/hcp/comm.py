@@ -8,16 +8,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from ost_msgs_py.messages import (
-    AgentLost,
-    AgentMessage,
-    HelpAccept,
-    HelpOffer,
-    HelpRelease,
-    HelpRequest,
-    ObjectInfo,
-    SearchDone,
-)
+from ost_ros.messages import AgentLost, AgentMessage, ObjectInfo, SearchDone
+from ost_ros.protocols.hcp.messages import HelpAccept, HelpOffer, HelpRelease, HelpRequest
 from ost_ros.team import TeamInfo
 
 

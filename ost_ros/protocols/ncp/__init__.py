@@ -4,8 +4,9 @@ are executed like a CCP schedule. Not in either paper: the two papers combined."
 
 from __future__ import annotations
 
-from ost_msgs_py.messages import NegotiationOffer, ObjectFound, SearchDone, Status
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.messages import ObjectFound, SearchDone, Status
+from ost_ros.negotiation.messages import NegotiationOffer
 from ost_ros.negotiation.slots import NegotiationSettings
 from ost_ros.protocols.base import Capabilities, Option, ProtocolSpec
 from ost_ros.protocols.ncp.comm import NcpComm

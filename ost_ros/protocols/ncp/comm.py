@@ -25,18 +25,12 @@ from enum import Enum
 
 import numpy as np
 
-from ost_msgs_py.messages import (
-    AgentLost,
-    AgentMessage,
-    NegotiationOffer,
-    ObjectFound,
-    SearchDone,
-    Selection,
-    Status,
-)
 from ost_ros.coordination import CoordinationPolicy, order_groups
+from ost_ros.messages import AgentLost, AgentMessage, ObjectFound, SearchDone, Status
 from ost_ros.model import arrival_np
+from ost_ros.negotiation.messages import NegotiationOffer
 from ost_ros.negotiation.slots import NegotiationSettings, SlotNegotiation
+from ost_ros.protocols.ccp.messages import Selection
 from ost_ros.protocols.shared.failures import Recovery
 from ost_ros.protocols.shared.knowledge import Knowledge, QueuedMessages
 from ost_ros.team import TeamInfo

@@ -26,7 +26,8 @@ from collections.abc import Mapping, Sequence
 from enum import Enum
 from typing import Protocol
 
-from ost_msgs_py.messages import (
+from ost_ros.coordination import Assignment
+from ost_ros.messages import (
     FINISH_STATE,
     SEARCHING_STATE,
     Action,
@@ -38,7 +39,6 @@ from ost_msgs_py.messages import (
     SearchDone,
     Status,
 )
-from ost_ros.coordination import Assignment
 from ost_ros.model import Cell, arrival, can_move, group_period, manhattan, moves_between
 from ost_ros.motion import step_toward
 from ost_ros.protocols.base import AgentSummary

@@ -20,8 +20,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from ost_msgs_py.messages import SearchDone, Status
 from ost_ros.coordination import Assignment
+from ost_ros.messages import SearchDone, Status
 from ost_ros.model import Cell, group_period
 from ost_ros.protocols.shared.knowledge import Knowledge
 from ost_ros.protocols.shared.recovery import Sweep, drop_cell, remaining_sweep

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ost_msgs_py.messages import AgentMessage
 from ost_ros.coordination import Assignment, CoordinationPolicy
+from ost_ros.messages import AgentMessage
 from ost_ros.model import Cell, ObjectSpec, arrival_np
 from ost_ros.protocols.shared.recovery import Sweep
 from ost_ros.team import TeamInfo

@@ -9,12 +9,12 @@ import dataclasses
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ost_msgs_py.messages import Award, Bid
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate, simulate_events
 from ost_ros.engines.step import run_steps
 from ost_ros.model import Grid, ObjectSpec
 from ost_ros.protocols import make_agents
+from ost_ros.protocols.auction.messages import Award, Bid
 from ost_ros.scenario import build_scenario
 from tests.ost_ros.protocols.test_failures import failing_runs
 from tests.strategies import scenarios

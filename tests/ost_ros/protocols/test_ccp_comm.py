@@ -1,10 +1,11 @@
 """The CCP comm module never obeys a peer's selection: it recomputes it, and a selection that
 contradicts the algorithm (a faulty or false peer) is logged and ignored."""
 
-from ost_msgs_py.messages import ObjectFound, Selection
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.messages import ObjectFound
 from ost_ros.model import Grid, ObjectSpec
 from ost_ros.protocols.ccp.comm import CcpComm
+from ost_ros.protocols.ccp.messages import Selection
 from ost_ros.scenario import build_scenario
 from ost_ros.team import TeamInfo
 

@@ -54,10 +54,10 @@ def test_refused_combinations():
 
 
 def test_the_lowest_survivor_coordinates_once_the_coordinator_died():
-    from ost_msgs_py.messages import ScheduleUpdate
     from ost_ros.engines.step import run_steps
     from ost_ros.model import Grid
     from ost_ros.protocols import make_agents
+    from ost_ros.protocols.ccp.messages import ScheduleUpdate
     from ost_ros.scenario import generate_scenario
 
     s = generate_scenario(4, 8, 1, Grid(30, 12), 3)

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 
-from ost_msgs_py.messages import NegotiationOffer
 from ost_ros.coordination import Assignment, CoordinationPolicy, order_groups
 from ost_ros.engines import simulate, simulate_events
 from ost_ros.engines.step import run_steps
 from ost_ros.model import Grid, ObjectSpec, manhattan
+from ost_ros.negotiation.messages import NegotiationOffer
 from ost_ros.negotiation.slots import NegotiationSettings, SlotNegotiation, claim_cap, decide, protected
 from ost_ros.protocols import make_agents
 from ost_ros.protocols.ncp import SPEC as NCP

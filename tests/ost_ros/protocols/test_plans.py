@@ -5,7 +5,7 @@ steps; a hold never moves)."""
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ost_msgs_py.messages import ActionKind
+from ost_ros.messages import ActionKind
 from ost_ros.protocols.plans import Segment, advance, rest, unroll
 from ost_ros.search import route
 

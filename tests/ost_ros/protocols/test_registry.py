@@ -12,15 +12,16 @@ import sys
 
 import pytest
 
+from ost_msgs_py.wire import round_trip
 from ost_ros import protocols
 from ost_ros.cli import main
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate
+from ost_ros.lockstep.inprocess import run_lockstep as lockstep_run
 from ost_ros.model import Grid
 from ost_ros.protocols.base import ProtocolAgent
 from ost_ros.scenario import dump_scenario, generate_scenario
 from ost_ros.study.design import compared
-from world_node.inprocess import run_lockstep as lockstep_run
 
 INTERFACE = [m for m in dir(ProtocolAgent) if not m.startswith("_")]
 
@@ -104,7 +105,7 @@ def test_one_registry_line_reaches_cli_engines_runtime_and_study(added, tmp_path
     for engine in ("step", "event"):
         got = simulate(s, "twin", policy, engine=engine).to_dict()
         assert got.pop("protocol") == "twin" and got == {k: v for k, v in want.items() if k != "protocol"}
-    got, _ = lockstep_run(s, "twin", policy, 64, True)
+    got, _ = lockstep_run(s, "twin", policy, 64, True, carry=round_trip)
     assert got.protocol == "twin" and got.makespan == want["makespan"]
     path = tmp_path / "s.yaml"
     path.write_text(dump_scenario(s))

@@ -22,11 +22,19 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
-from ost_msgs_py.messages import Action, AgentLost
-from ost_msgs_py.runtime import Acted, AgentReport, PlanColumns, PlanStep, ProtocolViolation, RunEnd, Tick
 from ost_ros import protocols
 from ost_ros.coordination import Assignment, CoordinationPolicy
 from ost_ros.engines import step_limit
+from ost_ros.lockstep.messages import (
+    Acted,
+    AgentReport,
+    PlanColumns,
+    PlanStep,
+    ProtocolViolation,
+    RunEnd,
+    Tick,
+)
+from ost_ros.messages import Action, AgentLost
 from ost_ros.model import Scenario
 from ost_ros.result import RunResult
 from ost_ros.world import World

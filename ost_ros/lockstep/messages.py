@@ -1,4 +1,5 @@
-"""Message schemas of the ROS runtime (world node ↔ agent nodes), on top of the protocol messages.
+"""Message schemas of the lockstep (world node ↔ agent nodes), on top of the protocol messages.
+ROS-free: the runtimes (:mod:`.agent`, :mod:`.world`) exchange these; the nodes carry them.
 
 - :class:`Ready`: an agent is up and has matched every endpoint it needs (discovery done);
 - :class:`Tick` (world → one agent): the observation of step t, and which peers broadcast in the
@@ -18,7 +19,7 @@
   schedule they hold, predicted makespan, coordinations, warnings), from which the world builds
   the same result as the in-process simulator.
 
-Like :mod:`ost_msgs_py.messages`: frozen dataclasses with a ``TYPE`` tag; on the wire each is the
+Like :mod:`ost_ros.messages`: frozen dataclasses with a ``TYPE`` tag; on the wire each is the
 ``ost_msgs`` interface of the same name (:mod:`ost_msgs_py.wire`).
 Every message of a run carries the world's ``run`` id (random per run, kept across a world
 restart): agents learn it from their first tick, and anything stamped with another run's id — a
@@ -34,7 +35,8 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, overload
 
-from ost_msgs_py.messages import (
+from ost_ros.errors import OstError
+from ost_ros.messages import (
     SCHEMA_VERSION,
     Action,
     ActionKind,
@@ -48,7 +50,7 @@ from ost_msgs_py.messages import (
 RUNTIME_VERSION = 1
 
 
-class ProtocolViolation(ValueError):
+class ProtocolViolation(OstError):
     """A well-formed message that does not fit the run (unknown sender, wrong step, duplicate)."""
 
 
@@ -68,7 +70,7 @@ class Ready:
 class Tick:
     """World → agent: observe and act for step ``t``.
 
-    ``failed``: the world's notice (:class:`~ost_msgs_py.messages.AgentLost`) of every agent it
+    ``failed``: the world's notice (:class:`~ost_ros.messages.AgentLost`) of every agent it
     has declared failed (it sent no action for the notice's step). The agent adds the notices of
     step ``last`` to that step's inbox, after the peers' messages (as the simulator).
 
@@ -228,12 +230,7 @@ class PlanColumns(Sequence[PlanStep]):
 
     def same_action(self, k: int, action: Action) -> bool:
         """Whether ``action`` is step k's (whoever took it, whenever)."""
-        return (
-            action.kind is PLAN_KINDS[self.kind[k]]
-            and tuple(action.direction) == (self.dx[k], self.dy[k])
-            and action.object == self.object[k]
-            and action.state == self.state[k]
-        )
+        return action.does(PLAN_KINDS[self.kind[k]], (self.dx[k], self.dy[k]), self.object[k], self.state[k])
 
     def _columns(self) -> tuple[Any, ...]:
         return tuple(getattr(self, name) for name in self.COLUMNS)

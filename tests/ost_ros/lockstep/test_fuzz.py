@@ -13,15 +13,15 @@ import ost_msgs.msg as ros
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from agent_node import transport as tp
-from agent_node.runtime import AgentRuntime, ProtocolViolation
 from ost_msgs_py import auth, wire
-from ost_msgs_py.runtime import Acted, AgentReport, Ready, Resend, RunEnd, RunInfo, Tick
 from ost_ros.coordination import CoordinationPolicy
+from ost_ros.lockstep.agent import AgentRuntime, ProtocolViolation
+from ost_ros.lockstep.messages import Acted, AgentReport, Ready, Resend, RunEnd, RunInfo, Tick
+from ost_ros.lockstep.world import WorldRuntime
 from ost_ros.model import Grid
+from ost_ros.node import transport as tp
 from ost_ros.protocols import make_agents
 from ost_ros.scenario import generate_scenario
-from world_node.runtime import WorldRuntime
 
 RANGES = {
     "int8": (-(2**7), 2**7 - 1), "uint8": (0, 2**8 - 1), "uint16": (0, 2**16 - 1),

@@ -8,7 +8,8 @@ run end) says that s is over and every surviving agent's action for s is in; fai
 applied where the world's notices put them; the skipped steps follow from the agents' plans,
 as in the world. Every step executed calls ``on_step(world, actions)`` — the frames of a live
 view, the timeline of a replay. At the end the agents' reports give the same result as the
-world's ``<ns>/result``, rebuilt without a single node: ``ost replay`` checks that it is.
+world's ``<ns>/result``, rebuilt without a single node: ``ost replay`` checks that it is
+(:mod:`ost_msgs_py.replay` feeds it a recording).
 """
 
 from __future__ import annotations
@@ -17,19 +18,20 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from ost_msgs_py.messages import Action
-from ost_msgs_py.runtime import Acted, AgentReport, ProtocolViolation, Ready, RunEnd, RunInfo, Tick
 from ost_ros.bounds import lower_bound
+from ost_ros.errors import OstError
+from ost_ros.lockstep.messages import Acted, AgentReport, ProtocolViolation, Ready, RunEnd, RunInfo, Tick
+from ost_ros.lockstep.world import WorldRuntime
+from ost_ros.messages import Action
 from ost_ros.model import Scenario
 from ost_ros.result import RunResult
 from ost_ros.scenario import ScenarioError, parse_scenario
 from ost_ros.world import World
-from world_node.runtime import WorldRuntime
 
 StepHook = Callable[[World, list[Action]], None]
 
 
-class FollowError(ValueError):
+class FollowError(OstError):
     """The messages do not make a run (no run info, out of step with the world); says why."""
 
 
@@ -189,57 +191,3 @@ class RunFollower:
         assert self.scenario is not None
         result.lower_bound = lower_bound(self.scenario).value
         return result
-
-
-@dataclass
-class Replayed:
-    """A recording followed to its end: the rebuilt result and what the recording says."""
-
-    follower: RunFollower
-    result: RunResult
-    recorded: dict | None  # the world's own result (``<ns>/result``), if recorded
-    messages: int  # messages read
-    namespace: str
-
-    @property
-    def scenario(self) -> Scenario:
-        assert self.follower.scenario is not None
-        return self.follower.scenario
-
-    @property
-    def matches(self) -> bool | None:
-        """Whether the rebuilt result is the world's (None: the recording has no result)."""
-        if self.recorded is None:
-            return None
-        import json
-
-        return json.dumps(self.result.to_dict(), sort_keys=True) == json.dumps(self.recorded, sort_keys=True)
-
-
-def replay(path: str, on_step: StepHook | None = None) -> Replayed:
-    """Follow a recording (``ost_up.sh --record``) from its first message to its last."""
-    import json
-
-    from ost_msgs_py import bag, wire
-
-    follower = RunFollower(on_step=on_step)
-    recorded, count, namespace = None, 0, ""
-    for rec in bag.read(path):
-        count += 1
-        if rec.type_name == wire.type_name(RunInfo):
-            namespace = rec.topic.rpartition("/")[0]
-        if rec.type_name == "std_msgs/msg/String" and rec.topic.endswith("/result"):
-            try:
-                recorded = json.loads(bag.decode(rec).data)
-            except ValueError:
-                raise FollowError(f"{rec.topic}: the recorded result is not JSON") from None
-            continue
-        if not rec.type_name.startswith("ost_msgs/"):
-            continue
-        try:
-            follower.feed(wire.from_ros(bag.decode(rec)))
-        except wire.MessageError as exc:
-            follower.ignored += 1
-            if follower.info is None and rec.type_name == wire.type_name(RunInfo):
-                raise FollowError(f"{rec.topic}: {exc}") from None
-    return Replayed(follower, follower.result(), recorded, count, namespace)

@@ -1,4 +1,4 @@
-"""A run rebuilt from its messages (``world_node.follow``): whatever order the messages come in,
+"""A run rebuilt from its messages (``ost_ros.lockstep.follow``): whatever order the messages come in,
 the world's bookkeeping fed them gives the run's result, and its frames are the simulator's."""
 
 import json
@@ -7,21 +7,24 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ost_msgs_py.runtime import Tick
+from ost_msgs_py.wire import round_trip
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate
+from ost_ros.lockstep.follow import FollowError, RunFollower
+from ost_ros.lockstep.inprocess import run_lockstep
+from ost_ros.lockstep.messages import Tick
 from ost_ros.model import Grid
 from ost_ros.protocols import names
 from ost_ros.scenario import generate_scenario
 from ost_ros.watch.frames import FrameRecorder
-from world_node.follow import FollowError, RunFollower
-from world_node.inprocess import run_lockstep
 
 
 def recorded(scenario, protocol, kill=None):
     messages: list = []
-    result, _ = run_lockstep(scenario, protocol, CoordinationPolicy(), tap=messages.append, kill=kill)
+    result, _ = run_lockstep(
+        scenario, protocol, CoordinationPolicy(), tap=messages.append, kill=kill, carry=round_trip
+    )
     result.lower_bound = lower_bound(scenario).value
     return result, messages
 

@@ -10,8 +10,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ost_msgs_py import auth, wire
-from ost_msgs_py.messages import Action, ActionKind
-from ost_msgs_py.runtime import Acted, PlanColumns, PlanStep
+from ost_ros.lockstep.messages import Acted, PlanColumns, PlanStep
+from ost_ros.messages import Action, ActionKind
 
 cells = st.tuples(st.integers(-5, 10**6), st.integers(-5, 10**6))
 moves = st.tuples(st.integers(-1, 1), st.integers(-1, 1))

@@ -1,4 +1,4 @@
-"""What the world node and the agent nodes share on the wire: topic names, types, QoS, conversion.
+"""What the world, agent and watch nodes share on the wire: topic names, types, QoS, conversion.
 
 Every topic name is relative, so it lives under the node's namespace (default ``/ost``; ``-r
 __ns:=/team_a`` moves a whole team). Each protocol message kind has a topic of its own, named by
@@ -12,7 +12,6 @@ late joiner still gets them.
 
 from __future__ import annotations
 
-import faulthandler
 import hashlib
 import re
 import time
@@ -20,17 +19,16 @@ from typing import Any
 
 from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
 
-from agent_node.params import ParameterError
-from ost_msgs_py import auth, wire
-from ost_msgs_py.runtime import Acted, AgentReport, Ready, Resend, RunEnd, RunInfo, Tick
+from ost_msgs_py import wire
 from ost_msgs_py.wire import MessageError
 from ost_ros import protocols
+from ost_ros.lockstep.messages import Acted, AgentReport, Ready, Resend, RunEnd, RunInfo, Tick
 from ost_ros.model import Scenario
+from ost_ros.node.signing import NodeAuth
 from ost_ros.scenario import dump_scenario
 
 NAMESPACE = "/ost"  # the nodes' default namespace
@@ -231,58 +229,6 @@ class Throttle:
         self.logger.warning(f"{text}{more}")
 
 
-class NodeAuth:
-    """A node's part in authenticated messages: its signer (its own key) and a verifier (the
-    team's public keys), or neither in an insecure run (``insecure:=true``)."""
-
-    def __init__(self, signer: auth.Signer | None = None, verifier: auth.Verifier | None = None):
-        self.signer = signer
-        self.verifier = verifier
-        self._topics: dict[Any, str] = {}  # publisher -> its full topic name (a call into rcl)
-
-    @property
-    def secure(self) -> bool:
-        return self.verifier is not None
-
-    def publish(self, pub: Any, msg: Any) -> None:
-        """Seal (sign, with a fresh counter) and publish."""
-        if self.signer is not None:
-            topic = self._topics.get(pub)
-            if topic is None:
-                topic = self._topics[pub] = pub.topic_name
-            self.signer.seal(msg, topic)
-        pub.publish(msg)
-
-    def check(self, msg: Any, topic: str) -> str | None:
-        """None for a genuine message (or any, insecure); else why it is dropped."""
-        return None if self.verifier is None else self.verifier.check(msg, topic)
-
-    def counts(self) -> dict[str, int]:
-        """Messages dropped by this node: unsigned, forged, replayed."""
-        return self.verifier.counts() if self.verifier is not None else dict.fromkeys(auth.REASONS, 0)
-
-
-def node_auth(keys: str, insecure: bool, signer: int) -> NodeAuth:
-    """The node's keys from the run's key directory (``ost keys make``); the signer's own
-    private key is the only one it reads."""
-    if insecure:
-        if keys:
-            raise ParameterError("keys: given with insecure:=true (choose one)")
-        return NodeAuth()
-    if not keys:
-        raise ParameterError(
-            "keys: a secure run needs its key directory (-p keys:=DIR, made by `ost keys make`), "
-            "or -p insecure:=true"
-        )
-    try:
-        team = auth.load_team(keys)
-        if signer not in team.keys:
-            raise auth.AuthError(f"{keys}/{auth.TEAM_FILE}: no key for {auth.signer_name(signer)}")
-        return NodeAuth(auth.Signer(team, signer, auth.load_private(keys, signer)), auth.Verifier(team))
-    except auth.AuthError as exc:
-        raise ParameterError(f"keys: {exc}") from None
-
-
 def from_ros_or_warn(msg: Any, topic: str, throttle: Throttle, guard: NodeAuth | None = None) -> Any:
     """The message's dataclass (a Sample for a protocol message), or None after a throttled
     warning naming the topic, the sender it claims and why (its signature, or the field)."""
@@ -295,37 +241,3 @@ def from_ros_or_warn(msg: Any, topic: str, throttle: Throttle, guard: NodeAuth |
     except MessageError as exc:
         throttle.warn(topic, wire.sender_of(msg), str(exc))
         return None
-
-
-# rcl now and then spins forever inside destroy_node (busy, holding the GIL; seen twice in about
-# 600 node processes here, once at exit and once destroying a node right after creating it), so
-# a node process could hang after its work is done.
-DESTROY_TIMEOUT_S = 5.0
-
-
-# How a node waits for its samples. ``events``: rclpy's EventsExecutor (C++; about 10 µs a
-# sample); ``single``: a SingleThreadedExecutor, which rebuilds its wait set on every wait
-# (about 130 µs a sample) — the lockstep round trip is mostly that (benchmarks/bench_floor.py).
-EXECUTORS = ("events", "single")
-
-
-def executor(node: Node, name: str) -> Executor:
-    """The executor ``name`` (one of EXECUTORS) with ``node`` added; the caller loops on
-    ``spin_once(timeout_sec=...)`` until its node is done."""
-    if name not in EXECUTORS:
-        raise ParameterError(f"executor: {name!r} is not one of {', '.join(EXECUTORS)}")
-    ex: Executor
-    if name == "single":
-        ex = SingleThreadedExecutor()
-    else:
-        from rclpy.experimental import EventsExecutor
-
-        ex = EventsExecutor()
-    ex.add_node(node)
-    return ex
-
-
-def guard_exit(seconds: float = DESTROY_TIMEOUT_S) -> None:
-    """Arm a C-level watchdog (faulthandler's own thread needs no GIL): if the process is still
-    alive ``seconds`` from now it prints where it hangs and exits with code 1."""
-    faulthandler.dump_traceback_later(seconds, exit=True)

@@ -23,8 +23,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from ost_msgs_py.messages import Action, AgentLost, AgentMessage, ObjectInfo, Observation
-from ost_msgs_py.runtime import (
+from ost_ros import protocols
+from ost_ros.lockstep.messages import (
     PLAN_CODE,
     Acted,
     AgentReport,
@@ -36,15 +36,15 @@ from ost_msgs_py.runtime import (
     ScheduleEntry,
     Tick,
 )
-from ost_ros import protocols
+from ost_ros.messages import Action, AgentLost, AgentMessage, ObjectInfo, Observation
 from ost_ros.model import Cell
 from ost_ros.protocols.base import ProtocolAgent
 from ost_ros.protocols.plans import Plan, Row, Segment, advance, rows
 from ost_ros.protocols.shared.agent import PLAN_HORIZON
+from ost_ros.sensing import BLOCK
 
 # Quiet steps planned ahead by default: as far as the protocols' planners look.
 LOOKAHEAD = PLAN_HORIZON
-_SENSE = tuple((dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1))  # the world's sensing order
 
 # Messages of one step: sender -> seq -> message.
 StepInbox = dict[int, dict[int, AgentMessage]]
@@ -318,7 +318,7 @@ class AgentRuntime:
         an object it reacts to. Built as the columns it travels in (no object per step)."""
         steps = rows(plan, obs.t, obs.position, 1 + min(self.lookahead, self._horizon))
         first = next(steps, None)
-        if first is None or not _same_action(action, first):
+        if first is None or not action.does(*first[3:]):
             return ()  # the plan does not start with what it did (never, if plans are right)
         where = self._known_by_cell(self.agent.departures())
         kept: list[Row] = []
@@ -377,18 +377,8 @@ def _predict_sensed(
     """Known objects expected in the 3×3 block at step ``s``: where they were found, unless
     the agent knows their carry has started by then."""
     out: list[int] = []
-    for dx, dy in _SENSE:
+    for dx, dy in BLOCK:
         entries = by_cell.get((pos[0] + dx, pos[1] + dy))
         if entries:
             out.extend(i for i, start in entries if start is None or start >= s)
     return tuple(out)
-
-
-def _same_action(action: Action, step: Row) -> bool:
-    _, _, _, kind, direction, obj, state = step
-    return (
-        action.kind is kind
-        and tuple(action.direction) == tuple(direction)
-        and action.object == obj
-        and action.state == state
-    )

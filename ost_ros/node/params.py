@@ -1,4 +1,5 @@
-"""Node parameters with descriptors: what ``ros2 param describe`` shows and ``ros2 param set`` obeys.
+"""Node parameters with descriptors — what ``ros2 param describe`` shows and ``ros2 param set``
+obeys — and the node layer's errors.
 
 Every parameter of the world and agent nodes defines the run and is read once at start, so all
 are read-only: ``ros2 param set /ost/agent_0 ci 5`` is refused with rclpy's reason ("Trying to
@@ -14,10 +15,16 @@ from typing import Any
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 
+from ost_ros.errors import OstError
+
 INT_MAX = 2**31 - 1
 
 
-class ParameterError(ValueError):
+class NodeError(OstError):
+    """The node layer's error base: a node that cannot start as configured (one line)."""
+
+
+class ParameterError(NodeError):
     """A bad node parameter; the text names it (the node exits with one line and code 2)."""
 
 

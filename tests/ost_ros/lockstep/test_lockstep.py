@@ -1,22 +1,29 @@
 """The lockstep protocol without DDS: world and agent runtimes wired directly, every message
-converted to its ost_msgs interface and back. Skipping on and off give exactly ``simulate``'s result (no transport here;
+converted to its ost_msgs interface and back (``carry=round_trip``). Skipping on and off give exactly ``simulate``'s result (no transport here;
 the DDS tests run the same runtimes in real processes)."""
 
 import dataclasses
 
 import pytest
 
-from agent_node.runtime import AgentRuntime, ProtocolViolation
-from ost_msgs_py.messages import SearchDone, Selection
-from ost_msgs_py.runtime import Acted, AgentReport, Resend, RunEnd, Sample
+from ost_msgs_py.wire import round_trip as wire
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate
+from ost_ros.lockstep.agent import AgentRuntime, ProtocolViolation
+from ost_ros.lockstep.inprocess import run_lockstep
+from ost_ros.lockstep.messages import Acted, AgentReport, Resend, RunEnd, Sample
+from ost_ros.lockstep.world import WorldRuntime
+from ost_ros.messages import SearchDone
 from ost_ros.model import Grid
 from ost_ros.protocols import make_agents, names
+from ost_ros.protocols.ccp.messages import Selection
 from ost_ros.scenario import generate_scenario
-from world_node.inprocess import run_lockstep as run
-from world_node.inprocess import wire
-from world_node.runtime import WorldRuntime
+
+
+def run(*args, **kwargs):
+    """The lockstep in one process, every message through its interface and back."""
+    return run_lockstep(*args, carry=wire, **kwargs)
+
 
 CASES = [(4, 6, 1, 30, 12, 1), (4, 6, 1, 30, 12, 6), (10, 15, 2, 40, 20, 1), (6, 12, 5, 36, 18, 3)]
 
@@ -58,7 +65,7 @@ def test_skipping_keeps_its_recorded_round_trips(protocol, ci, at_64, at_1024):
 def test_agents_replay_skipped_steps_in_bulk_with_the_same_result(protocol, monkeypatch):
     """An agent replays the steps the world skipped by the event engine's rule: it acts only
     where it decides and skips settled segments — far fewer calls than steps, same result."""
-    import world_node.inprocess as inprocess
+    import ost_ros.lockstep.inprocess as inprocess
 
     calls = {"act": 0, "skip": 0}
 
@@ -180,7 +187,7 @@ def test_lost_samples_are_recovered_and_change_nothing(protocol):
 
 
 def test_the_barrier_waits_for_every_counted_message_and_keeps_the_outbox_order():
-    from ost_msgs_py.messages import NegotiationOffer
+    from ost_ros.negotiation.messages import NegotiationOffer
 
     scenario = generate_scenario(2, 2, 1, Grid(12, 6), 2)
     rt = AgentRuntime(make_agents(scenario, "ncp", CoordinationPolicy())[0], (0, 1))

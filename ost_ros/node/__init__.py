@@ -1,0 +1,5 @@
+"""What the world, agent and watch nodes share (ROS; the layer between the messages and the
+nodes): topics and QoS (:mod:`.transport`), signing checks (:mod:`.signing`), read-only
+parameters and their errors (:mod:`.params`), and a node process's life — executor, spin,
+one-line errors, teardown (:mod:`.run`). No node package imports another; they all import this.
+"""
