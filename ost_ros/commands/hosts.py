@@ -64,7 +64,7 @@ def up(name: str, k: int, net: int = 77, loss: int = 0, block_multicast: bool = 
         _run("ip", "netns", "exec", sw, "ip", "link", "add", "br0", "type", "bridge")
         _run("ip", "netns", "exec", sw, "ip", "link", "set", "br0", "up")
         if block_multicast:
-            rule = "table bridge ost { chain forward { type filter hook forward priority 0; ip daddr 224.0.0.0/4 drop; } }"
+            rule = "table bridge ost {\n chain forward {\n  type filter hook forward priority 0; ip daddr 224.0.0.0/4 drop\n }\n}\n"
             _run("ip", "netns", "exec", sw, "nft", "-f", "-", stdin=rule)
         ips = []
         for i in range(k):
@@ -95,8 +95,8 @@ def up(name: str, k: int, net: int = 77, loss: int = 0, block_multicast: bool = 
             _run("ip", "netns", "exec", h, "ip", "route", "add", "default", "dev", "eth0")
             if loss:
                 rule = (
-                    "table inet ost { chain output { type filter hook output priority 0; "
-                    f'oifname "eth0" numgen random mod 100 < {loss} drop; }} }}'
+                    "table inet ost {\n chain output {\n  type filter hook output priority 0; "
+                    f'oifname "eth0" numgen random mod 100 < {loss} drop\n }}\n}}\n'
                 )
                 _run("ip", "netns", "exec", h, "nft", "-f", "-", stdin=rule)
             ips.append(ip)

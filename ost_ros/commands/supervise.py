@@ -89,6 +89,11 @@ class Supervisor:
             hosts = f" on {c['hosts']} simulated hosts (loss {c['loss']} %, discovery {c['discovery']})"
         else:
             hosts = ""
+        if self.cfg["record"]:
+            self.say(f"recording every topic of /{self.cfg['namespace'].strip('/')} to {self.cfg['record']}")
+        if self.cfg["foxglove"]:
+            self.say(f"live view: open ws://127.0.0.1:{self.cfg['foxglove']} in the Foxglove app "
+                     "(Open connection, Foxglove WebSocket)")  # fmt: skip
         self.say(f"started world + {len(run.agents)} agents{hosts} ({where}, run dir {run.dir})")
 
     def say(self, text: str) -> None:
@@ -134,7 +139,7 @@ class Supervisor:
                 code = _reap(pid)
                 if code is None:
                     continue
-                failed = self._ended(name, code, result.exists())
+                failed = self._ended(name, pid, code, result.exists())
                 if failed is not None:
                     return failed
             if timeout and time.monotonic() - self.t0 > timeout:
@@ -142,12 +147,12 @@ class Supervisor:
                 return 1
             time.sleep(POLL_S)
 
-    def _ended(self, name: str, code: int, over: bool) -> int | None:
+    def _ended(self, name: str, pid: int, code: int, over: bool) -> int | None:
         """A process ended with ``code``: carry on (None) or the run has failed (exit code)."""
         del self.pids[name]
         if name == "world" and not over and self.respawns > 0:
             self.respawns -= 1
-            self.say(f"world died with exit code {code}; restarting it from its checkpoint "
+            self.say(f"world (pid {pid}) died with exit code {code}; restarting it from its checkpoint "
                      f"({self.respawns} restarts left)")  # fmt: skip
             world = next(p for p in self.run.processes if p.name == "world")
             self.pids["world"] = start(self.run, world, ["-p", "resume:=true"])
@@ -155,10 +160,12 @@ class Supervisor:
         if over:
             return None  # the run is over: everyone leaves
         if name.startswith("agent_") and self.started:
-            self.say(f"{name} died mid-run (exit code {code}); the world declares it failed after "
+            self.say(f"{name} (pid {pid}) died mid-run (exit code {code}); the world declares it failed after "
                      f"2 x {self.cfg['failure_timeout']:g} s without its liveliness")  # fmt: skip
             return None
-        self.say(f"{name} died with exit code {code} before the result; see {self.run.file(name + '.log')}")
+        self.say(
+            f"{name} (pid {pid}) died with exit code {code} before the result; see {self.run.file(name + '.log')}"
+        )
         for line in _tail(self.run.file(f"{name}.log"), 3):
             print(line, file=self.err)
         return 1

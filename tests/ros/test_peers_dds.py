@@ -26,8 +26,8 @@ def test_auction_over_dds_equals_ost_sim(tmp_path):
     # every bid and award went over DDS (the agents count what they received)
     stats = json.loads((tmp_path / "run" / "result.json.transport.json").read_text())
     assert stats["protocol_messages"] == expected["messages"]
-    params = (tmp_path / "run" / "params.yaml").read_text()
-    assert 'protocol: "auction"' in params
+    params = (tmp_path / "run" / "agent.params.yaml").read_text()
+    assert "protocol: auction" in params
 
 
 def test_improved_planner_over_dds_equals_ost_sim(tmp_path):
