@@ -1,7 +1,7 @@
 """The behaviour corpus: ``ost`` commands whose every output byte is recorded.
 
 A refactor must leave each of these outputs unchanged (``tests/test_corpus.py``). The commands
-cover every protocol (CCP under each trigger, HCP, NCP), both engines, the coordinator
+cover every protocol (CCP under each trigger, HCP, NCP, the auction), both engines, the coordinator
 organisation, robot failures, heterogeneous teams, negotiated search areas, the exact optimum,
 Algorithm Coordination alone, the fault report and both papers' reproductions (``--quick``).
 

@@ -9,7 +9,7 @@ from dataclasses import replace
 import pytest
 
 from ost_ros.cli import main
-from ost_ros.study.design import Design, Variant, scenario_of
+from ost_ros.study.design import Design, compared, scenario_of
 from ost_ros.study.report import interval, means, speedup, write_all
 from ost_ros.study.runner import run_design
 
@@ -21,9 +21,10 @@ def test_design_matches_the_paper():
     tasks = d.tasks()
     assert len(tasks) == 5 * 8 * 10
     full = [t for t in tasks if t.agents in (10, 50)]
-    # CCP CI=1, CI=M, HCP, the auction, the 7 other CIs, and NCP (CI=1, CI=M)
+    # CCP CI=1, CI=M and the 7 other CIs, and every other protocol of the registry as compared
+    # (HCP, the auction, ..., NCP at CI=1 and CI=M)
     assert all(
-        {Variant("hcp"), Variant("auction"), Variant("ncp", "M")} <= set(t.variants) and len(t.variants) == 13
+        set(compared()) <= set(t.variants) and len(t.variants) == len(compared()) + len(d.cis) - 1
         for t in full
     )
     # The same object set for every N.
