@@ -43,8 +43,9 @@ def test_tiny_study_end_to_end(tmp_path):
     rows, timing = run_design(TINY, workers=2, progress=False)
     rows1, _ = run_design(TINY, workers=1, progress=False)
     assert rows == rows1  # reproducible, whatever the workers
-    # N=10: CCP CI=1, M, HCP, AUCTION, CCP CI=10, NCP CI=1, M; N=20: CCP CI=1, M
-    assert len(rows) == 2 * (1 + 1 + 1 + 1 + 1 + 2) + 2 * 2
+    # N=10: every protocol of the registry as compared (CCP and NCP at CI=1 and M, HCP, ...) and
+    # CCP CI=10; N=20: CCP CI=1, M — for each of the 2 M
+    assert len(rows) == 2 * (len(compared()) + len(TINY.cis) - 1) + 2 * 2
     assert all(r.makespan >= r.lower_bound > 0 for r in rows)
     assert timing.workers == 2 and timing.cpu > 0 and timing.wall > 0
     report = write_all(tmp_path, TINY, rows, timing, quick=True)
