@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
-# Build and install the ost_msgs interface package (ost_msgs_py/ost_msgs) into a venv that holds
-# the pinned ROS 2 Jazzy wheels: rosidl from the wheels, cmake and a C/C++ compiler from the
-# machine. The venv is the ament prefix: afterwards `VENV/bin/python -c 'import ost_msgs.msg'`
+# Build and install the ost_msgs interface package (ost_msgs_py/ost_msgs, with every protocol's
+# own messages from ost_ros/protocols/<name>/msg) into a venv that holds the pinned ROS 2 Jazzy
+# wheels: rosidl from the wheels, cmake and a C/C++ compiler from the machine. The venv is the ament prefix: afterwards `VENV/bin/python -c 'import ost_msgs.msg'`
 # works with no environment, and `ros2 interface show ost_msgs/msg/ObjectFound` with
 # AMENT_PREFIX_PATH=VENV.
 #
 #   bringup_scripts/build_msgs.sh VENV
 #
-# Idempotent: a stamp (hash of the package's files) skips the build when nothing changed.
+# Idempotent: a stamp (hash of the package's files and of the protocols' own .msg files) skips
+# the build when nothing changed.
 # Build tree: VENV/build/ost_msgs (never in the repository).
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -19,7 +20,13 @@ quiet="${OST_SETUP_QUIET:-0}"
 say() { [ "$quiet" = 1 ] || echo "build_msgs: $*" >&2; }
 die() { echo "build_msgs: error: $*" >&2; exit 2; }
 
-stamp="$(cd "$src" && { ls -1 msg; cat CMakeLists.txt package.xml msg/*.msg; cat "$repo/bringup_scripts/build_msgs.sh"; } | sha256sum | cut -d' ' -f1)"
+# The package's files and every protocol's own .msg files (ost_ros/protocols/<name>/msg/, which
+# its CMakeLists.txt gathers into it): a new or changed message anywhere rebuilds.
+stamp="$(cd "$repo" && {
+  ls -1 "$src/msg" ost_ros/protocols/*/msg/*.msg
+  cat "$src/CMakeLists.txt" "$src/package.xml" "$src"/msg/*.msg ost_ros/protocols/*/msg/*.msg
+  cat bringup_scripts/build_msgs.sh
+} | sha256sum | cut -d' ' -f1)"
 if [ "$(cat "$stamp_file" 2>/dev/null)" = "$stamp" ] && [ -d "$venv/lib/python3.12/site-packages/ost_msgs" ]; then
   exit 0
 fi

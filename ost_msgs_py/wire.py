@@ -3,7 +3,8 @@
 Every message dataclass on the wire — the protocols' (:mod:`ost_ros.messages` and each protocol's
 own, as the registry lists them: :func:`ost_ros.protocols.messages`) and the lockstep's
 (:mod:`ost_ros.lockstep.messages`) — has an interface of the same name in the ``ost_msgs``
-package (``ost_msgs_py/ost_msgs/msg/``), field for field. The converters are built once, from
+package (``ost_msgs_py/ost_msgs/msg/``, and a protocol's own in ``ost_ros/protocols/<name>/msg/``),
+field for field. The converters are built once, from
 the dataclasses' type hints and the generated classes' field types, so a new message needs its
 ``.msg`` file and its dataclass, no code here.
 

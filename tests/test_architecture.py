@@ -26,8 +26,8 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     # what the nodes share: topics and QoS, signing checks, parameters, a node process's life
     ("node common", ("ost_ros.node",)),
     ("nodes", ("agent_node", "world_node")),
-    # the `ost` CLI, and ost_up.sh's preparation (it runs `ost` verbs in one process)
-    ("commands", ("ost_ros.commands", "ost_ros.cli", "ost_ros.__main__", "world_node.prepare")),
+    # the `ost` CLI (ost up: the bring-up of a run)
+    ("commands", ("ost_ros.commands", "ost_ros.cli", "ost_ros.__main__")),
 )
 ORDER = " ← ".join(name for name, _ in LAYERS)
 NODE_PACKAGES = ("agent_node", "world_node")

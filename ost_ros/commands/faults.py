@@ -32,7 +32,7 @@ def register(sub) -> None:
         help="table: scenario, fault, delivered / total, overhead",
         description="Robot failures in-process (the paper's area, N=10 and 20) against the "
         "fault-free run; --dds adds real runs over DDS: an agent process "
-        "SIGKILLed mid-run, and (as root, with nftables) 20 %% packet loss on "
+        "SIGKILLed mid-run, and (as root, with nftables) 20 % packet loss on "
         "three simulated hosts.",
     )
     r.add_argument("--quick", action="store_true", help="one small scenario (a few seconds)")

@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+from ost_ros import protocols
 from ost_ros.bounds import lower_bound
 from ost_ros.commands.args import at_least, leaf, load_scenario_arg
 from ost_ros.errors import UsageError
@@ -68,9 +69,10 @@ def register(sub) -> None:
         "compare",
         cmd_compare,
         help="every protocol and planner side by side",
-        description="Every protocol of the registry (HCP, the auction, CCP and NCP at CI=1 and "
-        "CI=M) and CCP's improved planner on the same scenarios of the study's grid: mean "
-        "makespan with 95 %% intervals, ratio to the lower bound, messages per object, CPU per "
+        description="Every protocol of the registry (those with coordination triggers at CI=1 and "
+        f"CI=M: {', '.join(protocols.names())}) and CCP's improved planner on the same scenarios "
+        "of the study's grid: mean "
+        "makespan with 95 % intervals, ratio to the lower bound, messages per object, CPU per "
         "run; report.md, runs.csv, summary.csv and one figure per N.",
     )
     p.add_argument("--out", required=True, help="output directory (created if needed)")

@@ -6,8 +6,8 @@ floats, so a message survives JSON or a DDS sequence<double> unchanged. The task
 each other's private rewards.
 
 :class:`NegotiationOffer` (the slot negotiation, :mod:`.slots`): one move as an OST agent
-broadcasts it — NCP's message (``ost_ros.protocols.ncp`` lists it; on the wire
-``ost_msgs/msg/NegotiationOffer``).
+broadcasts it — NCP's message (``ost_ros.protocols.ncp`` lists it; its interface,
+``ost_msgs/msg/NegotiationOffer``, is ``ost_ros/protocols/ncp/msg/NegotiationOffer.msg``).
 """
 
 from __future__ import annotations

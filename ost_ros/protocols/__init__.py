@@ -4,22 +4,32 @@ Each protocol is a sub-package exporting ``SPEC`` (a :class:`~ost_ros.protocols.
 its agent factory, messages, states, options and capabilities). Everything that lists protocols
 or checks what a protocol can do asks here: the ``ost`` verbs and their ``--help``, the agent
 node's parameters, ``ost_up.sh``, the study, the plots, the engines. Adding a protocol is its
-package plus one line in :data:`REGISTRY` (docs/architecture.md, "How to add a protocol").
+package plus one line in :data:`PACKAGES` (docs/architecture.md, "How to add a protocol").
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from importlib import import_module
+from typing import Any, cast
 
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.messages import AgentMessage
 from ost_ros.model import Scenario
-from ost_ros.protocols import auction, ccp, hcp, ncp
 from ost_ros.protocols.base import Capabilities, Option, ProtocolAgent, ProtocolError, ProtocolSpec
 from ost_ros.team import TeamInfo
 
-REGISTRY: dict[str, ProtocolSpec] = {spec.name: spec for spec in (ccp.SPEC, hcp.SPEC, ncp.SPEC, auction.SPEC)}
+# The protocols' packages, in the order listings show them: one line each.
+PACKAGES = (
+    "ost_ros.protocols.ccp",
+    "ost_ros.protocols.hcp",
+    "ost_ros.protocols.ncp",
+    "ost_ros.protocols.auction",
+    "ost_ros.protocols.greedy",
+)
+REGISTRY: dict[str, ProtocolSpec] = {
+    spec.name: spec for spec in (cast(ProtocolSpec, import_module(p).SPEC) for p in PACKAGES)
+}
 
 __all__ = [
     "REGISTRY",

@@ -1,8 +1,8 @@
 """``ost compare``: every protocol and CCP planner on the same scenarios, side by side.
 
 The study's grid (500×200, the paper's object law, N × M, ≥ 10 object sets; ``quick``: a corner
-of it) is run with every variant: HCP, the auction, CCP and NCP at CI = 1 and CI = M, and CCP
-with the improved planner at both. Per (variant, N, M): mean makespan with a 95 % interval
+of it) is run with every variant: every protocol of the registry (those with triggers at CI = 1
+and CI = M), and CCP with the improved planner at both. Per (variant, N, M): mean makespan with a 95 % interval
 (Student t over the object sets), mean ratio to the lower bound, protocol messages per object,
 CPU seconds per run (the in-process run: planning and the engine). Every statement of the
 report is computed from these rows.

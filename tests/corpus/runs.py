@@ -1,9 +1,10 @@
 """The behaviour corpus: ``ost`` commands whose every output byte is recorded.
 
 A refactor must leave each of these outputs unchanged (``tests/test_corpus.py``). The commands
-cover every protocol (CCP under each trigger, HCP, NCP), both engines, the coordinator
-organisation, robot failures, heterogeneous teams, negotiated search areas, the exact optimum,
-Algorithm Coordination alone, the fault report and both papers' reproductions (``--quick``).
+cover every protocol (CCP under each trigger, HCP, NCP, the auction, greedy dispatch), both
+engines, the coordinator organisation, robot failures, heterogeneous teams, negotiated search
+areas, the exact optimum, Algorithm Coordination alone, the fault report and both papers'
+reproductions (``--quick``).
 
 Scenario files are written by the corpus's own ``ost generate`` commands (their output is part
 of the corpus), into a scratch folder named by ``{dir}`` in the arguments.
@@ -98,6 +99,9 @@ def sim_commands() -> list[tuple[str, list[str]]]:
     sim("ccp-improved-ciM", "mid", "--protocol", "ccp", "--ci", "1000", "--planner", "improved")
     sim("fail-ncp", "crowd", "--protocol", "ncp", "--fail", "2:40", engines=("step",))
     sim("fail-auction", "crowd", "--protocol", "auction", "--fail", "2:40", engines=("step",))
+    for sc in ("small", "crowd", "hetero"):
+        sim("greedy", sc, "--protocol", "greedy")
+    sim("fail-greedy", "crowd", "--protocol", "greedy", "--fail", "2:40", engines=("step",))
     sim(
         "fail-coordinator",
         "crowd",

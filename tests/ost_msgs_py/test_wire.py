@@ -3,6 +3,8 @@ interface, CDR serialization (as DDS carries it) and back; a value that does not
 is a ``MessageError`` naming the field; every dataclass field has its interface field."""
 
 import dataclasses
+import enum
+import typing
 
 import pytest
 from hypothesis import given
@@ -26,16 +28,11 @@ from ost_ros.messages import (
     Action,
     ActionKind,
     AgentLost,
-    ObjectFound,
     ObjectInfo,
     Observation,
     ScheduledObject,
     SearchDone,
-    Status,
 )
-from ost_ros.negotiation.messages import NegotiationOffer
-from ost_ros.protocols.ccp.messages import ScheduleUpdate, Selection
-from ost_ros.protocols.hcp.messages import HelpAccept, HelpOffer, HelpRelease, HelpRequest
 
 ints = st.integers(-5, 10**6)
 ids = st.integers(-1, 10**4)
@@ -50,18 +47,50 @@ scheduled = st.builds(ScheduledObject, ids, id_lists, steps, steps)
 lost = st.builds(AgentLost, ids, steps, st.lists(infos, max_size=2).map(tuple))
 observations = st.builds(Observation, ids, steps, cells, st.lists(infos, max_size=3).map(tuple))
 actions = st.builds(Action, ids, steps, st.sampled_from(list(ActionKind)), cells, ids, texts)
-protocol_msgs = st.one_of(
-    st.builds(ObjectFound, ids, steps, infos),
-    st.builds(SearchDone, ids, steps),
-    st.builds(Selection, ids, steps, ints, id_lists),
-    st.builds(HelpRequest, ids, steps, infos),
-    st.builds(HelpOffer, ids, steps, ids, ids, steps),
-    st.builds(HelpAccept, ids, steps, ids, id_lists),
-    st.builds(HelpRelease, ids, steps, ids),
-    st.builds(NegotiationOffer, ids, steps, ints, ints, st.sampled_from(["offer", "exit"]), id_lists, ids),
-    st.builds(ScheduleUpdate, ids, steps, ints, st.lists(scheduled, max_size=3).map(tuple), st.booleans()),
-    st.builds(Status, ids, steps, steps, cells),
-)
+_RANGES = {"int32": 31, "int64": 63}  # signed: [-2^b, 2^b - 1]
+_UNSIGNED = {"uint8": 8, "uint16": 16, "uint32": 32, "uint64": 64}
+
+
+def _field(hint, ros: str):
+    """Values of one dataclass field, over the whole range its interface field takes."""
+    if hint is int:
+        if ros in _UNSIGNED:
+            return st.integers(0, 2 ** _UNSIGNED[ros] - 1)
+        return st.integers(-(2 ** _RANGES[ros]), 2 ** _RANGES[ros] - 1)
+    if hint is str:
+        return texts
+    if hint is bool:
+        return st.booleans()
+    if isinstance(hint, type) and issubclass(hint, enum.Enum):
+        return st.sampled_from(list(hint))
+    if dataclasses.is_dataclass(hint):
+        return built(hint)
+    args = typing.get_args(hint)
+    if typing.get_origin(hint) is tuple and args[-1] is Ellipsis:  # a sequence
+        return st.lists(_field(args[0], ros[len("sequence<") : -1]), max_size=3).map(tuple)
+    if typing.get_origin(hint) is tuple:  # a fixed tuple onto a message: a cell
+        return st.tuples(*(_field(a, "int32") for a in args))
+    if set(args) == {int, type(None)}:  # -1 on the wire is None
+        return st.none() | st.integers(0, 2 ** _RANGES[ros] - 1)
+    raise TypeError(f"no strategy for {hint!r} ({ros})")
+
+
+def built(cls):
+    """Any value of a message dataclass, from its type hints and its interface's field types."""
+    ros = wire.ros_type(cls).get_fields_and_field_types()
+    hints = typing.get_type_hints(cls)
+    return st.builds(
+        cls,
+        **{
+            f.name: _field(hints[f.name], ros[f.name])
+            for f in dataclasses.fields(cls)
+            if f.name != "version" and (cls, f.name) != (AgentLost, "sender")
+        },
+    )
+
+
+# Every agent message kind of the registry (its specs' messages): a new protocol's are drawn too.
+protocol_msgs = st.one_of(*(built(cls) for cls in protocols.messages()))
 peers_counts = st.lists(st.tuples(ids, counts), max_size=4).map(
     lambda pc: (tuple(p for p, _ in pc), tuple(c for _, c in pc))
 )

@@ -1,5 +1,5 @@
 """The makespan lower bound: hand-computed terms on a tiny scenario, and never above any run's
-makespan (CCP under every trigger, HCP) on random scenarios."""
+makespan (every protocol of the registry, under every trigger kind it has) on random scenarios."""
 
 import pytest
 from hypothesis import given, settings
@@ -9,6 +9,7 @@ from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate_events
 from ost_ros.model import Grid, ObjectSpec
+from ost_ros.protocols import REGISTRY
 from ost_ros.scenario import build_scenario, generate_scenario
 from tests.strategies import scenarios
 
@@ -26,13 +27,12 @@ def test_hand_computed_terms():
 @settings(max_examples=150)
 @given(scenarios(width=(4, 40), height=(3, 16), agents=(1, 8), objects=(0, 14)), st.integers(1, 15))
 def test_bound_never_exceeds_a_run(scenario, ci):
+    """Of any protocol of the registry, under each kind of trigger where it has triggers."""
     b = lower_bound(scenario).value
-    for proto, policy in (
-        ("ccp", CoordinationPolicy(ci=ci)),
-        ("ccp", CoordinationPolicy(interval=ci)),
-        ("hcp", CoordinationPolicy()),
-    ):
-        assert simulate_events(scenario, proto, policy).makespan >= b
+    for proto, spec in REGISTRY.items():
+        triggered = (CoordinationPolicy(ci=ci), CoordinationPolicy(interval=ci))
+        for policy in triggered if spec.capabilities.triggers else (CoordinationPolicy(),):
+            assert simulate_events(scenario, proto, policy).makespan >= b
 
 
 @pytest.mark.slow

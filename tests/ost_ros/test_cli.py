@@ -6,6 +6,8 @@ import sys
 
 import pytest
 
+from ost_ros import protocols
+
 OST = [sys.executable, "-m", "ost_ros"]
 
 
@@ -251,7 +253,9 @@ def test_sim_coordinator_organisation(scenario):
     assert r.returncode == 0 and json.loads(r.stdout)["completed"], r.stderr
 
 
-@pytest.mark.parametrize("protocol", ["ncp", "auction", "hcp"])
+@pytest.mark.parametrize(
+    "protocol", [n for n, spec in protocols.REGISTRY.items() if spec.capabilities.recovers_failures]
+)
 def test_sim_every_protocol_recovers_from_a_failure(scenario, protocol):
     r = ost("sim", scenario, "--json", "--protocol", protocol, "--agents", 5, "--fail", "1:30")
     assert r.returncode == 0, r.stderr

@@ -9,7 +9,7 @@ from dataclasses import replace
 import pytest
 
 from ost_ros.cli import main
-from ost_ros.study.design import Design, Variant, scenario_of
+from ost_ros.study.design import Design, compared, scenario_of
 from ost_ros.study.report import interval, means, speedup, write_all
 from ost_ros.study.runner import run_design
 
@@ -21,9 +21,10 @@ def test_design_matches_the_paper():
     tasks = d.tasks()
     assert len(tasks) == 5 * 8 * 10
     full = [t for t in tasks if t.agents in (10, 50)]
-    # CCP CI=1, CI=M, HCP, the auction, the 7 other CIs, and NCP (CI=1, CI=M)
+    # CCP CI=1, CI=M and the 7 other CIs, and every other protocol of the registry as compared
+    # (HCP, the auction, ..., NCP at CI=1 and CI=M)
     assert all(
-        {Variant("hcp"), Variant("auction"), Variant("ncp", "M")} <= set(t.variants) and len(t.variants) == 13
+        set(compared()) <= set(t.variants) and len(t.variants) == len(compared()) + len(d.cis) - 1
         for t in full
     )
     # The same object set for every N.
@@ -42,8 +43,9 @@ def test_tiny_study_end_to_end(tmp_path):
     rows, timing = run_design(TINY, workers=2, progress=False)
     rows1, _ = run_design(TINY, workers=1, progress=False)
     assert rows == rows1  # reproducible, whatever the workers
-    # N=10: CCP CI=1, M, HCP, AUCTION, CCP CI=10, NCP CI=1, M; N=20: CCP CI=1, M
-    assert len(rows) == 2 * (1 + 1 + 1 + 1 + 1 + 2) + 2 * 2
+    # N=10: every protocol of the registry as compared (CCP and NCP at CI=1 and M, HCP, ...) and
+    # CCP CI=10; N=20: CCP CI=1, M — for each of the 2 M
+    assert len(rows) == 2 * (len(compared()) + len(TINY.cis) - 1) + 2 * 2
     assert all(r.makespan >= r.lower_bound > 0 for r in rows)
     assert timing.workers == 2 and timing.cpu > 0 and timing.wall > 0
     report = write_all(tmp_path, TINY, rows, timing, quick=True)

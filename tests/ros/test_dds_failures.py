@@ -1,14 +1,15 @@
 """Robot failures over DDS: an agent process killed with SIGKILL mid-run (by itself at a given
 step, or from outside at an arbitrary moment) is detected by its lost liveliness, declared failed
 in the step the world was at, and the survivors re-coordinate — the result is exactly the
-in-process run with that failure (``ost sim --fail AGENT:STEP``), for every protocol (CCP, HCP,
-NCP, the auction) and CCP's coordinator organisation. Too few survivors end the run with a result
-that says why."""
+in-process run with that failure (``ost sim --fail AGENT:STEP``), for every protocol of the
+registry that recovers, under each organisation it runs (CCP's coordinator organisation too).
+Too few survivors end the run with a result that says why."""
 
 import subprocess
 
 import pytest
 
+from ost_ros import protocols
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate
@@ -93,22 +94,25 @@ def test_hcp_recovers_from_a_failed_agent_as_in_process(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "protocol, extra, policy",
+    "protocol, organisation",
     [
-        ("ncp", (), CoordinationPolicy(ci=1)),
-        ("auction", (), CoordinationPolicy(ci=1)),
-        ("ccp", ("--coordination", "coordinator"), CoordinationPolicy(ci=1, organisation="coordinator")),
+        (spec.name, organisation)
+        for spec in protocols.REGISTRY.values()
+        if spec.capabilities.recovers_failures
+        for organisation in spec.capabilities.organisations
     ],
 )
-def test_every_protocol_recovers_from_a_killed_agent_as_in_process(tmp_path, protocol, extra, policy):
+def test_every_protocol_recovers_from_a_killed_agent_as_in_process(tmp_path, protocol, organisation):
     scenario, path = scenario_file(tmp_path)
+    policy = CoordinationPolicy(ci=1, organisation=organisation)
     run = ost_up(
         "--scenario",
         str(path),
         "--json",
         "--protocol",
         protocol,
-        *extra,
+        "--coordination",
+        organisation,
         "--kill-agent",
         "0:10",  # the coordinator, a negotiator, an auctioneer
         "--run-dir",

@@ -1,6 +1,8 @@
-"""The event-driven engine gives exactly the step simulator's run: every found time, the schedule,
+"""The event engines give exactly the step simulator's run: every found time, the schedule,
 every object's group/start/delivery, every agent's cost/idle/carry/search/travel, the makespan,
-message and coordination counts — for CCP under every trigger kind, and for HCP."""
+message and coordination counts — for every protocol of the registry (under every trigger kind),
+on the engine it runs on (the analytic one for shared knowledge, else the generic one), and on
+the generic engine for those that normally run on the analytic one (their ``plan``)."""
 
 import numpy as np
 import pytest
@@ -12,7 +14,7 @@ from ost_ros.engines import choose_engine, simulate, simulate_events
 from ost_ros.engines.event import run_events
 from ost_ros.model import Grid
 from ost_ros.partition import choose_partition
-from ost_ros.protocols import make_agents
+from ost_ros.protocols import REGISTRY, make_agents, names
 from ost_ros.scenario import build_scenario, generate_objects, generate_scenario
 from ost_ros.sensing import first_sensing
 from tests.strategies import policies, scenarios
@@ -24,16 +26,14 @@ def same_run(a, b):
     assert a.found == b.found and a.schedule == b.schedule
 
 
-@settings(max_examples=300)
+ANALYTIC = [n for n, spec in REGISTRY.items() if spec.capabilities.team_knowledge]
+
+
+@pytest.mark.parametrize("protocol", names())
+@settings(max_examples=150)
 @given(scenarios(width=(4, 40), height=(3, 16), agents=(1, 8), objects=(0, 14)), policies)
-def test_ccp_event_engine_equals_step_engine(scenario, policy):
-    same_run(simulate(scenario, "ccp", policy), simulate_events(scenario, "ccp", policy))
-
-
-@settings(max_examples=300)
-@given(scenarios(width=(4, 40), height=(3, 16), agents=(1, 8), objects=(0, 14)))
-def test_hcp_event_engine_equals_step_engine(scenario):
-    same_run(simulate(scenario, "hcp"), simulate_events(scenario, "hcp"))
+def test_event_engine_equals_step_engine(protocol, scenario, policy):
+    same_run(simulate(scenario, protocol, policy), simulate_events(scenario, protocol, policy))
 
 
 @st.composite
@@ -58,23 +58,23 @@ def test_engines_agree_on_crowded_scenarios(scenario, policy):
 
 
 @pytest.mark.slow
-def test_paper_sized_runs_agree():
-    # One paper-sized object set (500x200, N=10, M=20) per protocol, end to end.
+@pytest.mark.parametrize("protocol", names())
+def test_paper_sized_runs_agree(protocol):
+    # One paper-sized object set (500x200, N=10, M=20) per protocol, end to end (CI=1, and
+    # CI=M where the protocol has triggers).
     s = generate_scenario(10, 20, 7)
-    for proto, policy in (
-        ("ccp", CoordinationPolicy(ci=1)),
-        ("ccp", CoordinationPolicy(ci=20)),
-        ("hcp", CoordinationPolicy()),
-    ):
-        same_run(simulate(s, proto, policy), simulate_events(s, proto, policy))
+    cis = (1, 20) if REGISTRY[protocol].capabilities.triggers else (1,)
+    for ci in cis:
+        policy = CoordinationPolicy(ci=ci)
+        same_run(simulate(s, protocol, policy), simulate_events(s, protocol, policy))
 
 
-def test_step_limit_falls_back_to_reference():
+@pytest.mark.parametrize("protocol", names())
+def test_step_limit_falls_back_to_reference(protocol):
     s = build_scenario(Grid(30, 12), generate_objects(4, 5, Grid(30, 12), 2), n_agents=2, nmax=2)
-    for proto in ("ccp", "hcp"):
-        a = simulate(s, proto, max_steps=10)
-        b = simulate_events(s, proto, max_steps=10)
-        assert not b.completed and b.steps == a.steps == 10 and b.error == a.error
+    a = simulate(s, protocol, max_steps=10)
+    b = simulate_events(s, protocol, max_steps=10)
+    assert not b.completed and b.steps == a.steps == 10 and b.error == a.error
 
 
 def test_first_sensing_covers_the_3x3_block():
@@ -99,9 +99,9 @@ def _generic(scenario, protocol, policy):
 @given(
     scenarios(width=(4, 40), height=(3, 16), agents=(1, 8), objects=(0, 14)),
     policies,
-    st.sampled_from(["ccp", "ncp"]),
+    st.sampled_from(ANALYTIC),
 )
-def test_generic_event_engine_equals_step_engine_for_every_protocol(scenario, policy, protocol):
+def test_generic_event_engine_equals_step_engine_for_every_analytic_protocol(scenario, policy, protocol):
     same_run(simulate(scenario, protocol, policy), _generic(scenario, protocol, policy))
 
 
@@ -109,5 +109,5 @@ def test_generic_event_engine_equals_step_engine_for_every_protocol(scenario, po
 @settings(max_examples=25)
 @given(crowded(), policies)
 def test_generic_engine_on_crowded_scenarios(scenario, policy):
-    for protocol in ("ccp", "ncp"):
+    for protocol in ANALYTIC:
         same_run(simulate(scenario, protocol, policy), _generic(scenario, protocol, policy))

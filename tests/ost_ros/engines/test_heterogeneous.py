@@ -1,6 +1,7 @@
 """Heterogeneous teams (agents of period k move one cell every k steps): the paper's promises
-still hold for CCP and NCP — no deadlock, nothing illegal, planned = executed — and the event
-engine is the same run as the step engine; HCP refuses such a team with a clear error."""
+still hold for every protocol of the registry that runs them (CCP, NCP, ...) — no deadlock,
+nothing illegal, planned = executed — and the event engine is the same run as the step engine;
+HCP refuses such a team with a clear error."""
 
 import dataclasses
 
@@ -12,6 +13,7 @@ from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy, coordinate
 from ost_ros.engines import simulate, simulate_events
 from ost_ros.model import AgentSpec, Grid, ObjectSpec, arrival, can_move, group_period
+from ost_ros.protocols import REGISTRY
 from ost_ros.scenario import (
     ScenarioError,
     build_scenario,
@@ -56,8 +58,12 @@ def hetero(draw):
     return build_scenario(s.grid, s.objects, partition=s.partition, agents=agents, nmax=s.nmax)
 
 
+# every protocol of the registry that runs robots of unequal speeds
+UNEQUAL = [n for n, spec in REGISTRY.items() if spec.capabilities.heterogeneous]
+
+
 @settings(max_examples=150, deadline=None)
-@given(hetero(), policies, st.sampled_from(["ccp", "ncp"]))
+@given(hetero(), policies, st.sampled_from(UNEQUAL))
 def test_heterogeneous_runs_keep_the_promises(scenario, policy, protocol):
     r = simulate(scenario, protocol, policy)
     assert r.completed, r.error

@@ -1,4 +1,5 @@
-"""Robot failures in the core (every protocol, and CCP's coordinator organisation): the recovery
+"""Robot failures in the core (every protocol of the registry that recovers, under each
+organisation it runs): the recovery
 arithmetic by hand, a hand-checked run with a carrier failing mid-carry, and the promises as
 properties on random scenarios — with at least n_max survivors every object is still delivered,
 survivors agree, and (shared-schedule protocols) planned = executed after the last recovery;
@@ -10,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from ost_ros import protocols
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate
 from ost_ros.model import Grid, ObjectSpec, moves_between
@@ -106,13 +108,22 @@ def failing_runs(draw):
     return s, policy, {a: draw(st.integers(0, horizon)) for a in dead}
 
 
-@pytest.mark.parametrize("protocol", ["ccp", "hcp", "ncp", "auction", "ccp-coordinator"])
+# Every protocol of the registry that recovers, under each organisation it runs (CCP's
+# coordinator organisation: the next coordinator is the lowest surviving id).
+RECOVERING = [
+    (spec.name, organisation)
+    for spec in protocols.REGISTRY.values()
+    if spec.capabilities.recovers_failures
+    for organisation in spec.capabilities.organisations
+]
+
+
+@pytest.mark.parametrize("protocol, organisation", RECOVERING)
 @settings(max_examples=120)
 @given(run=failing_runs())
-def test_failures_never_lose_an_object_the_survivors_can_carry(protocol, run):
+def test_failures_never_lose_an_object_the_survivors_can_carry(protocol, organisation, run):
     s, policy, failures = run
-    if protocol == "ccp-coordinator":  # the next coordinator is the lowest surviving id
-        protocol, policy = "ccp", dataclasses.replace(policy, organisation="coordinator")
+    policy = dataclasses.replace(policy, organisation=organisation)
     r = simulate(s, protocol, policy, failures=failures)
     survivors = s.n_agents - len(failures)
     assert not r.rejections and not r.warnings and r.agreement
@@ -123,8 +134,8 @@ def test_failures_never_lose_an_object_the_survivors_can_carry(protocol, run):
         if o.delivered is not None:
             assert all(o.delivered <= failures[a] for a in set(o.agents) & set(failures))
     assert r.completed == all(o.delivered is not None for o in r.objects)
-    if protocol == "hcp":  # HCP predicts nothing; its staffing decisions are agreed
-        return
+    if not protocols.get(protocol).capabilities.team_knowledge:  # HCP: no shared schedule,
+        return  # nothing predicted; its staffing decisions are agreed
     # planned = executed after the last recovery (none if the run ended before it closed)
     if r.predicted_makespan is not None:
         assert r.predicted_makespan == r.makespan

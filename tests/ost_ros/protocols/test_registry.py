@@ -18,6 +18,7 @@ from ost_ros.cli import main
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate
 from ost_ros.lockstep.inprocess import run_lockstep as lockstep_run
+from ost_ros.messages import AgentMessage
 from ost_ros.model import Grid
 from ost_ros.protocols.base import ProtocolAgent
 from ost_ros.scenario import dump_scenario, generate_scenario
@@ -27,10 +28,20 @@ INTERFACE = [m for m in dir(ProtocolAgent) if not m.startswith("_")]
 
 
 def test_names_and_specs():
-    assert protocols.names() == ("ccp", "hcp", "ncp", "auction")
+    assert protocols.names()[:2] == ("ccp", "hcp")  # the paper's two first, then the others
+    assert len(set(protocols.names())) == len(protocols.names())
     for name, spec in protocols.REGISTRY.items():
         assert spec.name == name and spec.title and spec.states and spec.messages
         assert "SEARCHING" in spec.states and "FINISH" in spec.states  # the world reads these
+        # the analytic engine needs the one comm module speaking for the team
+        assert spec.capabilities.team_knowledge == (spec.team_comm is not None)
+
+
+def test_the_message_table_is_the_specs():
+    kinds = protocols.messages()
+    assert set(kinds) == {m for spec in protocols.REGISTRY.values() for m in spec.messages}
+    assert len(kinds) == len(set(kinds)) and all(issubclass(m, AgentMessage) for m in kinds)
+    assert len({m.TYPE for m in kinds}) == len(kinds)  # a topic each
 
 
 @pytest.mark.parametrize("name", protocols.names())
@@ -42,8 +53,9 @@ def test_every_agent_has_the_whole_interface(name):
 
 
 def test_unknown_name_is_one_clear_error_everywhere(tmp_path):
+    choices = ", ".join(protocols.names())
     with pytest.raises(
-        protocols.ProtocolError, match=r"unknown protocol 'lottery' \(choose from ccp, hcp, ncp, auction\)"
+        protocols.ProtocolError, match=re.escape(f"unknown protocol 'lottery' (choose from {choices})")
     ):
         protocols.get("lottery")
     s = generate_scenario(2, 2, 1, Grid(12, 6), 2)
