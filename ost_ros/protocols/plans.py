@@ -165,6 +165,8 @@ def rest(seg: Segment, t: int, steps: int) -> Segment:
     index = seg.index
     if seg.kind == "sweep":
         index += min(moves_between(t, t + steps, seg.period), len(seg.path) - 1 - seg.index)
+    if left is None and index == seg.index:
+        return seg  # an open-ended wait, hold or walk: nothing of it is used up
     # The constructor, not dataclasses.replace: the event engine ages every quiet agent's plan
     # after every deciding step, and replace's generic field walk was a quarter of an HCP run.
     return Segment(seg.kind, seg.state, left, seg.period, seg.target, seg.path, index, seg.object)
