@@ -11,7 +11,6 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
@@ -72,6 +71,8 @@ class ProcessPool(Executor):
     threads (tqdm's monitor, rclpy's executor), and forking those is unsafe."""
 
     def __init__(self, workers: int) -> None:
+        from multiprocessing import get_context
+
         self.workers = workers
         self.name = f"{workers} worker processes"
         self._pool = get_context("forkserver").Pool(workers)

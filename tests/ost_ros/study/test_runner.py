@@ -5,6 +5,8 @@ study is refused in one line."""
 
 import json
 import math
+import subprocess
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -143,3 +145,15 @@ def test_an_unreachable_scheduler_is_one_line(capsys, tmp_path):
     assert main(["faults", "report", "--quick", "--cluster", str(tmp_path / "none.json")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no such scheduler file" in err
+
+
+def test_dask_is_imported_only_for_a_cluster():
+    code = (
+        "import sys\n"
+        "from ost_ros.cli import build_parser\n"
+        "args = build_parser().parse_args(['reproduce', '--out', 'x', '--jobs', '2'])\n"
+        "from ost_ros.study import compare, reproduce, report\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
