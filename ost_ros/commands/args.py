@@ -118,8 +118,11 @@ def cluster_spec(text: str):
 
 def executor(args: argparse.Namespace, jobs: int | None = None):
     """The executor of a study verb's flags (``jobs``: the verb's default for ``--jobs``)."""
+    from ost_ros.errors import UsageError
     from ost_ros.study.executors import open_executor
 
+    if args.cluster is not None and args.jobs is not None:
+        raise UsageError("--jobs and --cluster: one or the other (a cluster has its own workers)")
     return open_executor(args.jobs or jobs, args.cluster)
 
 

@@ -139,6 +139,14 @@ def test_bad_cluster_flags_are_one_line(text, capsys, tmp_path):
     assert e.value.code == 2 and err.count("\n") == 1 and "--cluster" in err
 
 
+def test_jobs_and_cluster_together_are_one_line(capsys, tmp_path):
+    from ost_ros.cli import main
+
+    assert main(["compare", "--quick", "--out", str(tmp_path), "--jobs", "2", "--cluster", "local:2"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "one or the other" in err
+
+
 def test_an_unreachable_scheduler_is_one_line(capsys, tmp_path):
     from ost_ros.cli import main
 
