@@ -29,6 +29,8 @@ setup(
         ("share/" + package_name + "/launch", ["launch/team.launch.py"]),
     ],
     install_requires=["setuptools", "numpy", "PyYAML", "cryptography", "PyNaCl"],
+    # Studies on a Dask cluster (``--cluster``; imported only then). requirements.lock pins them.
+    extras_require={"cluster": ["dask", "distributed"]},
     python_requires=">=3.12",
     zip_safe=True,
     maintainer="OST project",

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ost_ros.model import Scenario
-from ost_ros.sensing import first_sensing, sweep_paths
+from ost_ros.sensing import first_sensings, sweep_paths
 
 
 @dataclass(frozen=True)
@@ -50,7 +50,7 @@ def lower_bound(scenario: Scenario) -> LowerBound:
         dest = np.array([o.destination for o in objs], dtype=np.int64)
         need = np.array([o.required for o in objs], dtype=np.int64)
         carry = np.abs(loc - dest).sum(axis=1)
-        first = np.array([first_sensing(p, loc) for p in paths], dtype=np.int64)
+        first = first_sensings(scenario)
         f = np.where(first >= 0, first, np.iinfo(np.int64).max).min(axis=0)
         reach = np.sort(np.abs(loc[:, None, :] - bases[None, :, :]).sum(axis=2), axis=1)
         home = np.sort(np.abs(dest[:, None, :] - bases[None, :, :]).sum(axis=2), axis=1)

@@ -10,8 +10,8 @@ command, which owns the processes; this module stays ROS-free.
 from __future__ import annotations
 
 import random
-from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 
 from ost_ros import protocols
 from ost_ros.coordination import CoordinationPolicy
@@ -19,6 +19,8 @@ from ost_ros.engines import simulate
 from ost_ros.model import Grid, Scenario
 from ost_ros.result import RunResult
 from ost_ros.scenario import generate_scenario
+from ost_ros.study.executors import Executor
+from ost_ros.study.runner import Study, run_study
 
 
 @dataclass(frozen=True)
@@ -113,33 +115,68 @@ def variants(names: tuple[str, ...] | None = None) -> list[tuple[str, Coordinati
     return out
 
 
+@dataclass(frozen=True)
+class FaultRun:
+    """One run of the fault study: scenario ``scenario`` of ``study_scenarios(quick)``, a protocol
+    and its organisation, and ``case`` (an index of ``cases_for``; -1: the fault-free run)."""
+
+    quick: bool
+    scenario: int
+    protocol: str
+    policy: CoordinationPolicy
+    case: int
+    seed: int
+
+
+@lru_cache(maxsize=2)
+def _scenario(quick: bool, index: int) -> tuple[str, Scenario]:
+    return study_scenarios(quick)[index]
+
+
+@lru_cache(maxsize=8)
+def _baseline(quick: bool, index: int, protocol: str, policy: CoordinationPolicy) -> RunResult:
+    # Every fault case needs the fault-free makespan: once per worker, not once per case.
+    return simulate(_scenario(quick, index)[1], protocol, policy, engine="auto")
+
+
+def run(spec: FaultRun) -> FaultRow:
+    """The row of one run (a pure function of the spec)."""
+    label, scenario = _scenario(spec.quick, spec.scenario)
+    name = f"{spec.protocol.upper()}{'' if not spec.policy.centralised else ' (coordinator)'}: {label}"
+    base = _baseline(spec.quick, spec.scenario, spec.protocol, spec.policy)
+    if spec.case < 0:
+        return row_of(name, "none", base, base.makespan)
+    assert base.makespan is not None, base.error
+    case = cases_for(scenario)[spec.case]
+    failures = case.failures(scenario, base.makespan, spec.seed)
+    r = simulate(scenario, spec.protocol, spec.policy, failures=failures)
+    note = f"agents {sorted(failures)} at step {next(iter(failures.values()))}"
+    if not r.completed and r.error:
+        note += f"; {r.error.split(': ', 1)[0]} (too few survivors)"
+    return row_of(name, case.label(), r, base.makespan, note)
+
+
+def study(
+    quick: bool = False, seed: int = 1, names: tuple[str, ...] | None = None
+) -> Study[FaultRun, FaultRow]:
+    """Per scenario and protocol setting: the fault-free run, then every fault case."""
+    specs = [
+        FaultRun(quick, k, protocol, policy, case, seed)
+        for k, (_, scenario) in enumerate(study_scenarios(quick))
+        for protocol, policy in variants(names)
+        for case in range(-1, len(cases_for(scenario)))
+    ]
+    return Study("faults", specs, run, row_type=FaultRow)
+
+
 def in_process_rows(
+    executor: Executor,
     quick: bool = False,
     seed: int = 1,
-    progress: Callable[[], object] | None = None,
+    progress: bool | None = None,
     names: tuple[str, ...] | None = None,
 ) -> list[FaultRow]:
-    rows: list[FaultRow] = []
-    runs = [
-        (label, scenario, protocol, policy)
-        for label, scenario in study_scenarios(quick)
-        for protocol, policy in variants(names)
-    ]
-    for label, scenario, protocol, policy in runs:
-        name = f"{protocol.upper()}{'' if not policy.centralised else ' (coordinator)'}: {label}"
-        base = simulate(scenario, protocol, policy, engine="auto")
-        rows.append(row_of(name, "none", base, base.makespan))
-        assert base.makespan is not None, base.error
-        for case in cases_for(scenario):
-            failures = case.failures(scenario, base.makespan, seed)
-            r = simulate(scenario, protocol, policy, failures=failures)
-            note = f"agents {sorted(failures)} at step {next(iter(failures.values()))}"
-            if not r.completed and r.error:
-                note += f"; {r.error.split(': ', 1)[0]} (too few survivors)"
-            rows.append(row_of(name, case.label(), r, base.makespan, note))
-            if progress is not None:
-                progress()
-    return rows
+    return run_study(study(quick, seed, names), executor, progress=progress).rows
 
 
 def markdown(rows: list[FaultRow]) -> str:

@@ -39,6 +39,17 @@ def _paths(areas: tuple[Subarea, ...], bases: tuple, sweeps: tuple) -> tuple[np.
     return tuple(out)
 
 
+@lru_cache(maxsize=4)
+def first_sensings(scenario: Scenario) -> np.ndarray:
+    """(N, M): the first index of agent j's sweep path at which it senses object i (-1: never).
+    A study bounds a scenario and runs it under several protocols and triggers: computed once."""
+    paths = sweep_paths(scenario)
+    cells = np.array([o.location for o in scenario.objects], dtype=np.int64).reshape(-1, 2)
+    first = np.array([first_sensing(p, cells) for p in paths], dtype=np.int64).reshape(len(paths), -1)
+    first.flags.writeable = False
+    return first
+
+
 def first_sensing(path: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """For each cell, the first index of ``path`` whose 3×3 block covers it (-1: never)."""
     if len(cells) == 0:

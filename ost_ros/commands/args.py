@@ -83,3 +83,49 @@ def load_scenario_arg(path: str, agents: int | None):
         return scenario if agents is None else with_team(scenario, agents)
     except ScenarioError as exc:
         raise UsageError(str(exc)) from None
+
+
+# ----------------------------------------------------------------------------- study verbs
+
+
+def add_workers(p: argparse.ArgumentParser, jobs: str = "every core") -> None:
+    """``--jobs``, ``--cluster`` and ``--progress``, as every study verb takes them."""
+    p.add_argument("--jobs", type=at_least(1), help=f"worker processes on this machine (default: {jobs})")
+    p.add_argument(
+        "--cluster",
+        type=cluster_spec,
+        metavar="ADDRESS|FILE.json|local:K",
+        help="run on a Dask distributed cluster instead: its scheduler's address (tcp://HOST:PORT), "
+        "its scheduler file, or local:K (K worker processes started here); docs/reproduce.md",
+    )
+    p.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="progress bar on stderr (default: when stderr is a terminal)",
+    )
+
+
+def cluster_spec(text: str):
+    """argparse type of ``--cluster`` (checked before Dask is imported)."""
+    from ost_ros.study.executors import ClusterSpec
+
+    try:
+        return ClusterSpec.parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def executor(args: argparse.Namespace, jobs: int | None = None):
+    """The executor of a study verb's flags (``jobs``: the verb's default for ``--jobs``)."""
+    from ost_ros.errors import UsageError
+    from ost_ros.study.executors import open_executor
+
+    if args.cluster is not None and args.jobs is not None:
+        raise UsageError("--jobs and --cluster: one or the other (a cluster has its own workers)")
+    return open_executor(args.jobs or jobs, args.cluster)
+
+
+def resumed(timing) -> str:
+    """What an interrupted start had done already, for the closing line."""
+    return f" ({timing.resumed} more taken from the interrupted start)" if timing.resumed else ""

@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ost_ros.commands.args import at_least, leaf
+from ost_ros.commands.args import add_workers, at_least, executor, leaf
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate
 from ost_ros.errors import UsageError
@@ -40,6 +40,7 @@ def register(sub) -> None:
     r.add_argument("--seed", type=at_least(0), default=1, help="which robots fail (seeded draw)")
     r.add_argument("--out", help="also write the table (markdown) to this file")
     r.add_argument("--json", action="store_true", help="print the rows as JSON")
+    add_workers(r)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1], prog=p.prog)
 
 
@@ -47,7 +48,8 @@ def cmd_report(args: argparse.Namespace) -> int:
     if args.out and not Path(args.out).resolve().parent.is_dir():
         raise UsageError(f"--out {args.out}: directory {Path(args.out).parent} does not exist")
     t0 = time.monotonic()
-    rows = in_process_rows(args.quick, args.seed)
+    with executor(args) as ex:
+        rows = in_process_rows(ex, args.quick, args.seed, args.progress)
     if args.dds:
         rows += dds_rows()
     elapsed = time.monotonic() - t0

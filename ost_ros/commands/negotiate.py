@@ -2,7 +2,7 @@
 
 ost negotiate run --task area --robots 3 [--delta 0.98] [--json]
 ost negotiate run --file task.yaml [--json]
-ost negotiate reproduce --out DIR [--quick] [--seed S] [--runs K] [--jobs J]
+ost negotiate reproduce --out DIR [--quick] [--seed S] [--runs K] [--jobs J | --cluster ADDRESS]
 ost negotiate partition [--file team.yaml] [--robots N --periods 1,2,1 --width W --height H] [--json] [--plot F.png]
 ost negotiate partition --scenario s.yaml [-o negotiated.yaml]
 ost negotiate slots --scenario s.yaml [--delta D] [--json]
@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ost_ros.commands.args import OneLineParser, at_least
+from ost_ros.commands.args import OneLineParser, add_workers, at_least, executor, resumed
 from ost_ros.errors import UsageError
 from ost_ros.negotiation.errors import NegotiationError
 from ost_ros.yamlload import safe_load
@@ -59,8 +59,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     rep.add_argument("--quick", action="store_true", help="few runs per cell (well under a minute)")
     rep.add_argument("--seed", type=at_least(0), default=0, help="base seed, 0 or more (default 0)")
     rep.add_argument("--runs", type=int, help="runs per table cell (default 10, quick 2-3)")
-    rep.add_argument("--jobs", type=int, help="worker processes (default: up to 2 cores)")
-    rep.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    add_workers(rep, jobs="up to 2 cores")
     rep.set_defaults(func=cmd_reproduce, prog=rep.prog)
 
     part = sub.add_parser(
@@ -339,28 +338,26 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
-    from ost_ros.negotiation.reproduce import reproduce
+    import os
+
+    from ost_ros.study.negotiation import reproduce
 
     if args.runs is not None and args.runs < 1:
         raise UsageError(f"--runs must be at least 1, got {args.runs}")
-    if args.jobs is not None and args.jobs < 1:
-        raise UsageError(f"--jobs must be at least 1, got {args.jobs}")
     if args.out.exists() and not args.out.is_dir():
         raise UsageError(f"--out {args.out} exists and is not a directory")
     try:
-        summary = reproduce(
-            args.out,
-            quick=args.quick,
-            seed=args.seed,
-            runs=args.runs,
-            workers=args.jobs,
-            progress=not args.no_progress,
-        )
+        with executor(args, jobs=min(2, os.cpu_count() or 1)) as ex:
+            summary = reproduce(
+                args.out, ex, quick=args.quick, seed=args.seed, runs=args.runs, progress=args.progress
+            )
     except NegotiationError as exc:
         raise UsageError(str(exc)) from None
     except OSError as exc:
         raise UsageError(f"cannot write into {args.out}: {exc.strerror or exc}") from None
-    print(f"report written to {args.out / 'report.md'} ({summary['elapsed_s']:.1f} s)")
+    print(
+        f"report written to {args.out / 'report.md'} ({summary['elapsed_s']:.1f} s{resumed(summary['timing'])})"
+    )
     return 0
 
 

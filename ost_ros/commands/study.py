@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from pathlib import Path
 
 from ost_ros import protocols
 from ost_ros.bounds import lower_bound
-from ost_ros.commands.args import at_least, leaf, load_scenario_arg
+from ost_ros.commands.args import add_workers, at_least, executor, leaf, load_scenario_arg, resumed
 from ost_ros.errors import UsageError
 from ost_ros.optimal import optimal_schedule, post_search_problem, search_space_order
 
@@ -83,19 +82,6 @@ def register(sub) -> None:
     add_workers(p)
 
 
-def add_workers(p: argparse.ArgumentParser) -> None:
-    """``--jobs`` and ``--progress``, as every study verb takes them."""
-    p.add_argument(
-        "--jobs", type=at_least(1), default=os.cpu_count() or 1, help="worker processes (default: every core)"
-    )
-    p.add_argument(
-        "--progress",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="progress bar on stderr (default: when stderr is a terminal)",
-    )
-
-
 def out_dir(text: str) -> Path:
     """``--out``: a directory, created if needed (one-line usage errors otherwise)."""
     out = Path(text)
@@ -113,9 +99,14 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     out = out_dir(args.out)
     tasks = grid(args.quick, args.sets)
-    rows, wall = run_all(tasks, workers=args.jobs, progress=args.progress)
-    files = write_all(rows, wall, out)
-    print(f"{len(rows)} runs in {wall:.1f} s; wrote {', '.join(files)} to {out}", file=sys.stderr)
+    with executor(args) as ex:
+        rows, outcome = run_all(tasks, ex, out, args.progress)
+    files = write_all(rows, outcome.timing, out)
+    outcome.finish()
+    print(
+        f"{len(rows)} runs in {outcome.timing.wall:.1f} s{resumed(outcome.timing)}; wrote {', '.join(files)} to {out}",
+        file=sys.stderr,
+    )
     print((out / "report.md").read_text())
     return 0
 
@@ -187,7 +178,7 @@ def cmd_optimal(args: argparse.Namespace) -> int:
 def cmd_reproduce(args: argparse.Namespace) -> int:
     from ost_ros.study.design import Design
     from ost_ros.study.report import write_all
-    from ost_ros.study.runner import run_design
+    from ost_ros.study.reproduce import run_design
 
     out = out_dir(args.out)
     design = Design.quick(args.seed) if args.quick else Design(seed=args.seed)
@@ -198,11 +189,14 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     seeds = args.seeds or ((args.seed,) if args.quick else tuple(range(args.seed, args.seed + 5)))
     design = replace(design, table3_seeds=seeds)
     start = time.perf_counter()
-    rows, timing = run_design(design, workers=args.jobs, progress=args.progress)
+    with executor(args) as ex:
+        rows, outcome = run_design(design, ex, out, args.progress)
+    timing = outcome.timing
     report = write_all(out, design, rows, timing, args.quick)
+    outcome.finish()
     total = time.perf_counter() - start
     print(
-        f"{len(rows)} runs in {timing.wall:.1f} s ({timing.cpu:.1f} CPU s, {total:.1f} s with "
+        f"{len(rows)} runs in {timing.wall:.1f} s{resumed(timing)} ({timing.cpu:.1f} CPU s, {total:.1f} s with "
         f"tables and plots, load {timing.load:.1f})",
         file=sys.stderr,
     )

@@ -23,7 +23,7 @@ from ost_ros.messages import AgentMessage, ObjectFound, SearchDone
 from ost_ros.model import Cell, Scenario, arrival, arrival_np, manhattan
 from ost_ros.protocols.base import ProtocolSpec
 from ost_ros.result import AgentRecord, ObjectRecord, RunResult
-from ost_ros.sensing import first_sensing, sweep_paths
+from ost_ros.sensing import first_sensings, sweep_paths
 from ost_ros.team import TeamInfo
 
 
@@ -33,10 +33,9 @@ def _sensing(scenario: Scenario) -> tuple[TeamInfo, list[np.ndarray], np.ndarray
     scenario is typically run under several triggers: computed once)."""
     team = TeamInfo.from_scenario(scenario)
     paths = sweep_paths(scenario)
-    locs = np.array([o.location for o in scenario.objects], dtype=np.int64).reshape(-1, 2)
     # first[j, i]: when agent j first senses object i during its search (-1: never): it stands
     # on path[idx] from arrival(0, idx, k_j) on (k_j = 1: time = index).
-    first = np.array([first_sensing(p, locs) for p in paths], dtype=np.int64).reshape(len(paths), -1)
+    first = first_sensings(scenario)
     k = team.period_array()[:, None]
     first = np.where(first >= 0, arrival_np(np.zeros_like(first), first, k), -1)
     masked = np.where(first >= 0, first, np.iinfo(np.int64).max)

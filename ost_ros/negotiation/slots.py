@@ -90,15 +90,18 @@ def decide(
     drop_key: np.ndarray,
     cap: int,
     prot: np.ndarray | None = None,
+    counts: np.ndarray | None = None,
 ) -> tuple[str, np.ndarray]:
     """Agent k's move in a round: ("exit", claim) if nothing it claims is contested, else
     ("offer", claim) after dropping the farthest unprotected contested objects down to ``cap``.
 
     ``drop_key`` (B,) is k's private reward term (larger = worse to keep); ``prot``: the
-    :func:`protected` mask if already computed for this round.
+    :func:`protected` mask, ``counts`` the live claimers per object, if already computed for
+    this round.
     """
     mine = claims[k]
-    counts = (claims & alive[:, None]).sum(axis=0)
+    if counts is None:
+        counts = (claims & alive[:, None]).sum(axis=0)
     contested = mine & (counts > need)
     if not contested.any():
         return "exit", mine.copy()
@@ -134,7 +137,12 @@ class SlotNegotiation:
     base: int = 0  # the round the current attempt opened in
     forced: bool = False  # closed by max_rounds, not by agreement
     notes: list[str] = field(default_factory=list)
-    _prot: np.ndarray | None = None  # protected() of the current round, once computed
+    # Of the current round's claims, computed once (every agent's move reads them): protected(),
+    # the live claimers per object, and each object's n_i-th smallest reach among them.
+    _prot: np.ndarray | None = None
+    _counts: np.ndarray | None = None
+    _nth: np.ndarray | None = None
+    _col: dict[int, int] | None = None  # object id → its column
 
     @classmethod
     def open(
@@ -178,6 +186,7 @@ class SlotNegotiation:
             self.drop_key(k),
             self.cap(settings),
             self.protected_now(),
+            self.counts_now(),
         )
 
     def protected_now(self) -> np.ndarray:
@@ -186,20 +195,32 @@ class SlotNegotiation:
             self._prot = protected(self.claims, self.reach, self.need, self.alive)
         return self._prot
 
+    def counts_now(self) -> np.ndarray:
+        """Live claimers per object for the current claims (computed once per round)."""
+        if self._counts is None:
+            self._counts = (self.claims & self.alive[:, None]).sum(axis=0)
+        return self._counts
+
+    def _new_claims(self) -> None:
+        self._prot = self._counts = self._nth = None
+
     def drop_key(self, k: int) -> np.ndarray:
         """Agent k's private reward of keeping each object (larger = drop first): how much later
         than the object's n_i-th fastest claimer it would arrive — a slot where it would keep
         the group waiting costs the team most."""
-        live = self.claims & self.alive[:, None]
-        key = np.where(live.T, self.reach, _FAR)  # (B, N)
-        nth = np.sort(key, axis=1)[np.arange(len(self.need)), self.need - 1]
-        return self.reach[:, k] - nth
+        if self._nth is None:
+            live = self.claims & self.alive[:, None]
+            key = np.where(live.T, self.reach, _FAR)  # (B, N)
+            self._nth = np.sort(key, axis=1)[np.arange(len(self.need)), self.need - 1]
+        return self.reach[:, k] - self._nth
 
     def _check(
         self, k: int, msg: NegotiationOffer, agent_id: int, prot: np.ndarray, counts: np.ndarray
     ) -> np.ndarray | None:
         """The claim row of a valid move of agent k, else None (with a note saying why)."""
-        col = {oid: c for c, oid in enumerate(self.objects)}
+        if self._col is None:
+            self._col = {oid: c for c, oid in enumerate(self.objects)}
+        col = self._col
         if (
             msg.kind not in ("offer", "exit")
             or any(o not in col for o in msg.offer)
@@ -214,13 +235,15 @@ class SlotNegotiation:
         prev = self.claims[k]
         prot = prot[k]
         why = None
-        if np.any(row & ~prev):
+        dropped = prev & ~row
+        # ndarray.any(), not np.any(): this runs for every move of every round
+        if (row & ~prev).any():
             why = "claims an object it had dropped"
-        elif np.any(prev & prot & ~row):
+        elif (dropped & prot).any():
             why = "dropped an object it must keep (protected)"
-        elif np.any(prev & ~row & (counts <= self.need)):
+        elif (dropped & (counts <= self.need)).any():
             why = "dropped an uncontested object"
-        elif msg.kind == "exit" and np.any(row & (counts > self.need)):
+        elif msg.kind == "exit" and (row & (counts > self.need)).any():
             why = "left while its claim is contested"
         if why:
             self.notes.append(
@@ -236,7 +259,7 @@ class SlotNegotiation:
         expected = np.flatnonzero(self.active)
         new_claims = self.claims.copy()
         prot = self.protected_now()
-        counts = (self.claims & self.alive[:, None]).sum(axis=0)
+        counts = self.counts_now()
         for k in expected:
             msg = moves.get(int(k))
             row = None if msg is None else self._check(int(k), msg, agent_ids[k], prot, counts)
@@ -247,7 +270,7 @@ class SlotNegotiation:
             new_claims[k] = row
             self.exited[k] = msg is not None and msg.kind == "exit"
         self.claims = new_claims
-        self._prot = None
+        self._new_claims()
         self.round += 1
         late = np.flatnonzero(self.active & (self.missing >= settings.timeout_rounds))
         if late.size:
@@ -262,7 +285,7 @@ class SlotNegotiation:
                 )
                 self.alive = alive
                 self.claims[:] = True
-                self._prot = None
+                self._new_claims()
                 self.exited[:] = False
                 self.missing[:] = 0
                 self.base = self.round

@@ -17,7 +17,7 @@ sensor shows nothing it reacts to (the agent's ``news``); callers check the seco
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from ost_ros.messages import ActionKind
 from ost_ros.model import Cell, can_move, moves_between, walk
@@ -162,7 +162,11 @@ def advance(seg: Segment, t: int, position: Cell, steps: int) -> tuple[Cell, int
 def rest(seg: Segment, t: int, steps: int) -> Segment:
     """What is left of ``seg`` (started in step ``t``) after ``steps`` of its steps."""
     left = None if seg.steps is None else seg.steps - steps
+    index = seg.index
     if seg.kind == "sweep":
-        moves = min(moves_between(t, t + steps, seg.period), len(seg.path) - 1 - seg.index)
-        return replace(seg, steps=left, index=seg.index + moves)
-    return replace(seg, steps=left)
+        index += min(moves_between(t, t + steps, seg.period), len(seg.path) - 1 - seg.index)
+    if left is None and index == seg.index:
+        return seg  # an open-ended wait, hold or walk: nothing of it is used up
+    # The constructor, not dataclasses.replace: the event engine ages every quiet agent's plan
+    # after every deciding step, and replace's generic field walk was a quarter of an HCP run.
+    return Segment(seg.kind, seg.state, left, seg.period, seg.target, seg.path, index, seg.object)

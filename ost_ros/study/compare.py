@@ -10,23 +10,22 @@ report is computed from these rows.
 
 from __future__ import annotations
 
-import csv
 import math
-import os
 import statistics
-import sys
 import time
-from collections.abc import Iterator
-from dataclasses import asdict, dataclass, fields
-from multiprocessing import get_context
+from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
-from typing import Any
 
 from ost_ros import protocols
 from ost_ros.bounds import lower_bound
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate
 from ost_ros.study.design import Design, Task, scenario_of
+from ost_ros.study.executors import Executor
+from ost_ros.study.runner import Outcome, Study, Timing, run_study
+from ost_ros.study.stats import interval
+from ost_ros.study.tables import write_csv
 
 PAPER = "CCP CI=1"  # the reference: the paper's protocol at its own trigger
 
@@ -89,70 +88,60 @@ def grid(quick: bool, sets: int | None) -> list[Task]:
     return sorted(tasks, key=lambda t: -t.objects * t.agents)  # heavy first
 
 
-def run_task(task: Task) -> list[Row]:
-    bound = lower_bound(scenario_of(task)).value
-    rows = []
-    for v in variants():
-        cpu = time.process_time()
-        r = v.run(task)
-        cpu = time.process_time() - cpu
-        if not r.completed or r.rejections or r.warnings:
-            raise RuntimeError(f"{v.label} on N={task.agents} M={task.objects} set {task.set}: {r.error}")
-        rows.append(
-            Row(
-                task.agents,
-                task.objects,
-                task.set,
-                task.seed,
-                v.label,
-                int(r.makespan or 0),
-                bound,
-                r.messages,
-                cpu,
-            )
-        )
-    return rows
+@dataclass(frozen=True)
+class Run:
+    """One variant on one object set with one team size."""
+
+    task: Task
+    variant: Variant
+
+
+@lru_cache(maxsize=4)
+def _bound(task: Task) -> int:
+    return lower_bound(scenario_of(task)).value
+
+
+def run(spec: Run) -> Row:
+    """The row of one run; its CPU seconds are those of the run itself (scenario and engine)."""
+    task, v = spec.task, spec.variant
+    cpu = time.process_time()
+    r = v.run(task)
+    cpu = time.process_time() - cpu
+    if not r.completed or r.rejections or r.warnings:
+        raise RuntimeError(f"{v.label} on N={task.agents} M={task.objects} set {task.set}: {r.error}")
+    return Row(
+        task.agents,
+        task.objects,
+        task.set,
+        task.seed,
+        v.label,
+        int(r.makespan or 0),
+        _bound(task),
+        r.messages,
+        cpu,
+    )
+
+
+def weight(spec: Run) -> float:
+    """Rough relative cost: stepped protocols and the improved planner grow with N·M."""
+    heavy = protocols.get(spec.variant.protocol).team_comm is None or spec.variant.planner != "paper"
+    return (1 + spec.task.objects) * (spec.task.agents if heavy else 2)
+
+
+def study(tasks: list[Task]) -> Study[Run, Row]:
+    """Every variant on every task, the tasks in the given order (heaviest first)."""
+    return Study("compare", [Run(t, v) for t in tasks for v in variants()], run, weight, Row)
 
 
 def run_all(
-    tasks: list[Task], workers: int | None = None, progress: bool | None = None
-) -> tuple[list[Row], float]:
-    """Every variant on every task (on every core, with a progress bar); rows and wall seconds."""
-    from tqdm import tqdm
-
-    workers = workers or os.cpu_count() or 1
-    show = sys.stderr.isatty() if progress is None else progress
-    rows: list[Row] = []
-    start = time.perf_counter()
-    with tqdm(total=len(tasks), desc="scenarios", unit="set", file=sys.stderr, disable=not show) as bar:
-        results: Iterator[list[Row]]
-        pool = None if workers == 1 else get_context("forkserver").Pool(workers)
-        results = map(run_task, tasks) if pool is None else pool.imap_unordered(run_task, tasks, chunksize=1)
-        try:
-            for out in results:
-                rows.extend(out)
-                bar.update()
-        finally:
-            if pool is not None:
-                pool.close()
-                pool.join()
-    rows.sort(key=lambda r: (r.agents, r.objects, r.variant, r.set))
-    return rows, time.perf_counter() - start
+    tasks: list[Task], executor: Executor, out: Path | None = None, progress: bool | None = None
+) -> tuple[list[Row], Outcome[Row]]:
+    """Every variant on every task: the rows sorted as runs.csv lists them, and the outcome."""
+    outcome = run_study(study(tasks), executor, out, progress)
+    return sorted(outcome.rows, key=lambda r: (r.agents, r.objects, r.variant, r.set)), outcome
 
 
 # ----------------------------------------------------------------------------- summary
-
-# two-sided 95 % Student t quantiles by degrees of freedom (normal beyond 30)
-_T95 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306, 9: 2.262}
-_T95.update({10: 2.228, 11: 2.201, 12: 2.179, 13: 2.160, 14: 2.145, 15: 2.131, 19: 2.093, 29: 2.045})
-
-
-def t95(df: int) -> float:
-    if df <= 0:
-        return math.nan
-    if df in _T95:
-        return _T95[df]
-    return max((v for k, v in _T95.items() if k >= df), default=1.96)
 
 
 @dataclass(frozen=True)
@@ -175,7 +164,6 @@ def summarise(rows: list[Row]) -> list[Cell]:
     cells = []
     for (v, n, m), rs in sorted(groups.items(), key=lambda kv: (kv[0][1], kv[0][2], kv[0][0])):
         xs = [r.makespan for r in rs]
-        sd = statistics.stdev(xs) if len(xs) > 1 else 0.0
         cells.append(
             Cell(
                 v,
@@ -183,7 +171,7 @@ def summarise(rows: list[Row]) -> list[Cell]:
                 m,
                 len(rs),
                 statistics.mean(xs),
-                t95(len(xs) - 1) * sd / math.sqrt(len(xs)) if len(xs) > 1 else math.nan,
+                interval(xs)[1],
                 statistics.mean(r.makespan / r.lower_bound for r in rs),
                 statistics.mean(r.messages / r.objects for r in rs),
                 statistics.mean(r.cpu_s for r in rs),
@@ -255,19 +243,6 @@ def findings(rows: list[Row], cells: list[Cell]) -> list[str]:
 # ----------------------------------------------------------------------------- outputs
 
 
-def write_csv(path: Path, items: list[Any]) -> None:
-    if not items:
-        path.write_text("")
-        return
-    names = [f.name for f in fields(items[0])]
-    with path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, names)
-        w.writeheader()
-        for it in items:
-            d = asdict(it)
-            w.writerow({k: (round(v, 4) if isinstance(v, float) else v) for k, v in d.items()})
-
-
 def plot(cells: list[Cell], out: Path) -> list[str]:
     """One figure per N: mean makespan vs M, one curve per variant, 95 % intervals."""
     import matplotlib
@@ -310,15 +285,15 @@ def plot(cells: list[Cell], out: Path) -> list[str]:
     return names
 
 
-def report(rows: list[Row], cells: list[Cell], wall: float, figures: list[str]) -> str:
+def report(rows: list[Row], cells: list[Cell], timing: Timing, figures: list[str]) -> str:
     sets = max((r.set for r in rows), default=0) + 1
     lines = [
         "# Every protocol and planner, side by side",
         "",
         f"- {len(rows)} runs: {len({(r.agents, r.objects) for r in rows})} (N, M) points × "
         f"{sets} object sets × {len({r.variant for r in rows})} variants, 500×200 grid, "
-        f"event engine (identical to the step simulator); wall time {wall:.1f} s, load "
-        f"{os.getloadavg()[0]:.1f} at the end.",
+        f"event engine (identical to the step simulator); wall time {timing.wall:.1f} s on "
+        f"{timing.executor or f'{timing.workers} workers'}, load {timing.load:.1f} at the end.",
         f"- Reference: {PAPER} (the paper's protocol at its own trigger). Intervals: 95 %, Student t "
         "over the object sets. CPU: seconds per in-process run (planning and the engine).",
         "",
@@ -351,10 +326,10 @@ def report(rows: list[Row], cells: list[Cell], wall: float, figures: list[str]) 
     return "\n".join(lines) + "\n"
 
 
-def write_all(rows: list[Row], wall: float, out: Path) -> list[str]:
+def write_all(rows: list[Row], timing: Timing, out: Path) -> list[str]:
     cells = summarise(rows)
-    write_csv(out / "runs.csv", rows)
-    write_csv(out / "summary.csv", cells)
+    write_csv(out / "runs.csv", rows, digits=4)
+    write_csv(out / "summary.csv", cells, digits=4)
     figures = plot(cells, out)
-    (out / "report.md").write_text(report(rows, cells, wall, figures))
+    (out / "report.md").write_text(report(rows, cells, timing, figures))
     return ["report.md", "runs.csv", "summary.csv", *figures]

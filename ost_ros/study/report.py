@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import csv
+import math
 import statistics
 from collections import defaultdict
 from pathlib import Path
@@ -11,7 +11,10 @@ from ost_ros import protocols
 from ost_ros.optimal import search_space_order
 from ost_ros.study.design import GRID, NMAX, PAPER, Design, compared
 from ost_ros.study.paper import TABLE1, TABLE3, TABLE3_AGENTS
-from ost_ros.study.runner import Row, Timing, row_dicts
+from ost_ros.study.reproduce import Row
+from ost_ros.study.runner import Timing
+from ost_ros.study.stats import interval
+from ost_ros.study.tables import write_csv
 
 PRIMARY_CI = "1"  # the CI of Table 3 / Fig 11 in the documented reading (docs/interpretation.md)
 PRIMARY = f"CCP CI={PRIMARY_CI}"
@@ -39,32 +42,12 @@ def means(rows: list[Row], time: str = "makespan", seed: int | None = None) -> C
     return {k: statistics.fmean(v) for k, v in values(rows, time, seed).items()}
 
 
-def interval(xs: list[float]) -> tuple[float, float]:
-    """Mean and the half-width of its 95 % interval (Student t over the object sets; 0 for one)."""
-    mean = statistics.fmean(xs)
-    if len(xs) < 2:
-        return mean, 0.0
-    from scipy.stats import t
-
-    return mean, float(t.ppf(0.975, len(xs) - 1)) * statistics.stdev(xs) / len(xs) ** 0.5
-
-
 def speedup(c: dict, variant: str, m: int, n: int) -> float | None:
     """S_N = (C_10 / C_N) · (10 / N)."""
     c10, cn = c.get((10, m, variant)), c.get((n, m, variant))
     if c10 is None or cn is None:
         return None
     return (c10 / cn) * (10 / n)
-
-
-def write_csv(path: Path, dicts: list[dict]) -> None:
-    if not dicts:
-        path.write_text("")
-        return
-    with path.open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(dicts[0]))
-        w.writeheader()
-        w.writerows(dicts)
 
 
 # ----------------------------------------------------------------------------- plots
@@ -390,7 +373,7 @@ def one_object(design: Design, rows: list[Row]) -> list[dict]:
 
 def write_all(out: Path, design: Design, rows: list[Row], timing: Timing, quick: bool) -> Path:
     out.mkdir(parents=True, exist_ok=True)
-    write_csv(out / "runs.csv", row_dicts(rows))
+    write_csv(out / "runs.csv", rows)
     write_csv(out / "summary.csv", summary_rows(design, rows))
     t3 = {(time, ci): table3(design, rows, TIMES[time], ci) for time in TIMES for ci in ("1", "M")}
     write_csv(
@@ -421,6 +404,11 @@ def _fmt(x) -> str:
 
 def _f3(x: float | None) -> str:
     return "–" if x is None else f"{x:.3f}"
+
+
+def _pm(mean: float, half: float) -> str:
+    """A mean ± its 95 % half-width (one object set: the mean alone, it has no interval)."""
+    return f"{mean:.0f}" if math.isnan(half) else f"{mean:.0f} ± {half:.0f}"
 
 
 def _yes(b: bool) -> str:
@@ -508,10 +496,7 @@ def _markdown(design, c, iv, rows, timing, quick, t1, t3, figs, claims, read, m1
         for m in design.objects:
             L.append(
                 f"| {m} | "
-                + " | ".join(
-                    f"{iv[(n, m, v)][0]:.0f} ± {iv[(n, m, v)][1]:.0f}" if (n, m, v) in iv else "–"
-                    for v in present
-                )
+                + " | ".join(_pm(*iv[(n, m, v)]) if (n, m, v) in iv else "–" for v in present)
                 + " |"
             )
         L.append("")

@@ -44,6 +44,11 @@ def run_reproduction(argv: list[str], out: Path) -> dict[str, str]:
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         code = main(argv)
     assert code == 0, f"ost {' '.join(argv)} exited with {code}"
+    return digests_of(out)
+
+
+def digests_of(out: Path) -> dict[str, str]:
+    """Digest of every CSV and of the report (timing lines left out) in a study's directory."""
     digests = {}
     for f in sorted(out.iterdir()):
         if f.suffix == ".csv":

@@ -6,8 +6,10 @@ import math
 import statistics
 
 from ost_ros import protocols
-from ost_ros.study.compare import PAPER, findings, run_all, summarise, t95, variants, write_all
+from ost_ros.study.compare import PAPER, findings, run_all, summarise, variants, write_all
 from ost_ros.study.design import Design, Task
+from ost_ros.study.executors import Executor
+from ost_ros.study.stats import t95
 
 
 def tasks():
@@ -27,8 +29,8 @@ def test_every_protocol_and_planner_is_compared():
 
 
 def test_compare_writes_a_report_computed_from_its_runs(tmp_path):
-    rows, wall = run_all(tasks(), workers=1, progress=False)
-    assert len(rows) == 2 * len(variants()) and wall > 0
+    rows, outcome = run_all(tasks(), Executor(), progress=False)
+    assert len(rows) == 2 * len(variants()) and outcome.timing.wall > 0
     cells = summarise(rows)
     for c in cells:
         xs = [r.makespan for r in rows if r.variant == c.variant]
@@ -40,7 +42,7 @@ def test_compare_writes_a_report_computed_from_its_runs(tmp_path):
     better = {r.set: r.makespan for r in rows if r.variant == "CCP CI=1 improved"}
     assert all(better[s] <= paper[s] for s in paper)
     assert "Improved planner vs the paper's at CI=1" in text and "never worse: yes" in text
-    files = write_all(rows, wall, tmp_path)
+    files = write_all(rows, outcome.timing, tmp_path)
     assert files[:3] == ["report.md", "runs.csv", "summary.csv"] and files[3] == "compare_N10.png"
     report = (tmp_path / "report.md").read_text()
     assert "| 10 | 10 |" in report and "![compare_N10.png](compare_N10.png)" in report

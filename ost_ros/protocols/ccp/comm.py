@@ -183,9 +183,10 @@ class CcpComm(Recovery, QueuedMessages):
         k.coordinations += 1
         self._selections[k.coordinations] = (survivors, result.selections)
         self._selections.pop(k.coordinations - _SELECTION_MEMORY, None)
+        # each survivor's selections as Python ints, read once (a team model speaks for all N)
+        picks = dict(zip(survivors, map(tuple, result.selections.T.tolist())))
         for voice in self.voices:
-            mine = tuple(int(x) for x in result.selections[:, survivors.index(voice)])
-            self._outbox.append(Selection(voice, t, k.coordinations, mine))
+            self._outbox.append(Selection(voice, t, k.coordinations, picks[voice]))
         self.state = CommState.LISTENING
 
     # ------------------------------------------------------------------ coordinator organisation
