@@ -15,9 +15,8 @@ venv="$(cd "${1:?usage: build_msgs.sh VENV}" && pwd)"
 src="$repo/ost_msgs_py/ost_msgs"
 build="$venv/build/ost_msgs"
 stamp_file="$venv/share/ost_msgs/.ost-msgs-stamp"
-quiet="${OST_SETUP_QUIET:-0}"
-say() { [ "$quiet" = 1 ] || echo "build_msgs: $*" >&2; }
-die() { echo "build_msgs: error: $*" >&2; exit 2; }
+. "$repo/bringup_scripts/stage.sh"
+die() { stage_break; echo "build_msgs: error: $*" >&2; exit 2; }
 
 stamp="$(cd "$src" && { ls -1 msg; cat CMakeLists.txt package.xml msg/*.msg; cat "$repo/bringup_scripts/build_msgs.sh"; } | sha256sum | cut -d' ' -f1)"
 if [ "$(cat "$stamp_file" 2>/dev/null)" = "$stamp" ] && [ -d "$venv/lib/python3.12/site-packages/ost_msgs" ]; then
@@ -29,9 +28,10 @@ missing=()
 for tool in cmake make gcc g++; do command -v "$tool" >/dev/null 2>&1 || missing+=("$tool"); done
 if [ ${#missing[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
-    say "installing ${missing[*]} (apt-get: cmake build-essential)"
+    stage_begin "installing ${missing[*]} (apt-get: cmake build-essential)"
     DEBIAN_FRONTEND=noninteractive apt-get install -y -q cmake build-essential >/dev/null 2>&1 \
       || die "apt-get install cmake build-essential failed; install ${missing[*]} by hand"
+    stage_end "build tools installed (apt-get: cmake build-essential)"
   else
     die "building the ost_msgs interfaces needs ${missing[*]} (Debian/Ubuntu: apt-get install cmake build-essential)"
   fi
@@ -40,16 +40,15 @@ py="$venv/bin/python3"
 "$py" -c 'import sysconfig, os, sys; sys.exit(0 if os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")) else 1)' \
   || die "Python.h is missing for $py (the interpreter's development headers, e.g. python3.12-dev)"
 
-say "building the ost_msgs interfaces (first time: about a minute)"
-t0=$(date +%s)
+stage_begin "building the ost_msgs interfaces (the first time one to two minutes)"
 log="$venv/build_msgs.log"; : > "$log"
 mkdir -p "$build"
-run() { "$@" >>"$log" 2>&1 || { tail -n 30 "$log" >&2; die "$1 failed (full log: $log)"; }; }
+run() { "$@" >>"$log" 2>&1 || { stage_break; tail -n 30 "$log" >&2; die "$1 failed (full log: $log)"; }; }
 # AMENT_PREFIX_PATH at configure time: rosidl finds the typesupports through the ament index.
 run env AMENT_PREFIX_PATH="$venv" cmake -S "$src" -B "$build" -DCMAKE_PREFIX_PATH="$venv" \
   -DCMAKE_INSTALL_PREFIX="$venv" -DPython3_EXECUTABLE="$py" -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF
 run env AMENT_PREFIX_PATH="$venv" cmake --build "$build" -j2
 run cmake --install "$build"
-"$py" -c 'import ost_msgs.msg' >>"$log" 2>&1 || { tail -n 10 "$log" >&2; die "ost_msgs built but does not import (log: $log)"; }
+"$py" -c 'import ost_msgs.msg' >>"$log" 2>&1 || { stage_break; tail -n 10 "$log" >&2; die "ost_msgs built but does not import (log: $log)"; }
 echo "$stamp" > "$stamp_file"
-say "ost_msgs built in $(( $(date +%s) - t0 )) s"
+stage_end "ost_msgs interfaces built"
