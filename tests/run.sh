@@ -22,8 +22,9 @@ if [ "$(id -u)" = 0 ] && ! command -v nft >/dev/null && command -v apt-get >/dev
     echo "tests/run.sh: could not install nftables; the loss and multicast-blocking tests will skip" >&2
   fi
 fi
-# The real ros2 CLI and launch, for tests/ros/test_ros2cli.py (test tooling from ../shared/ros2,
-# not part of the product; without those sources the tests skip, saying why).
+# colcon, the real ros2 CLI and launch, for tests/ros/test_colcon.py and test_ros2cli.py (test
+# tooling: colcon from PyPI, the CLI from ../shared/ros2 — without those sources the CLI tests
+# skip, saying why; not part of the product).
 bash "$repo/tests/ros2_tools.sh" "$venv"
 # Lint, format and types first (seconds): the same checks for everyone (pyproject.toml).
 if [ "${OST_LINT:-1}" = 1 ]; then

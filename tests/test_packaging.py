@@ -134,3 +134,41 @@ def test_the_lock_pins_every_declared_library():
     }
     missing = sorted(d for d in install_requires() if norm(d) not in pinned)
     assert not missing, f"requirements.lock pins none of {missing}"
+
+
+def pins(path: Path) -> dict[str, str]:
+    out = {}
+    for line in path.read_text().splitlines():
+        if "==" in line and not line.startswith("#"):
+            name, version = line.split("==")
+            out[norm(name)] = version.strip()
+    return out
+
+
+def test_the_tools_lock_completes_requirements_lock():
+    """tests/ros2_tools.lock (colcon, installed --no-deps by tests/ros2_tools.sh) pins only what
+    requirements.lock lacks, and the two together satisfy every requirement of what it pins."""
+    from importlib.metadata import PackageNotFoundError, requires, version
+
+    from packaging.requirements import Requirement
+
+    product, tools = pins(REPO / "requirements.lock"), pins(REPO / "tests" / "ros2_tools.lock")
+    assert not set(product) & set(tools), "pinned in both lock files"
+    both = product | tools
+    unmet = []
+    for dist, pinned in sorted(tools.items()):
+        try:
+            assert version(dist) == pinned, f"{dist} {version(dist)} installed, {pinned} pinned"
+            wants = requires(dist) or []
+        except PackageNotFoundError:
+            raise AssertionError(
+                f"{dist} is not installed: tests/ros2_tools.sh installs the tools lock"
+            ) from None
+        for text in wants:
+            req = Requirement(text)
+            if req.marker is not None and not req.marker.evaluate({"extra": ""}):
+                continue
+            have = both.get(norm(req.name))
+            if have is None or not req.specifier.contains(have, prereleases=True):
+                unmet.append(f"{dist} needs {req} (pinned: {have})")
+    assert not unmet, "; ".join(unmet)
