@@ -3,7 +3,8 @@
 # the pinned ROS 2 Jazzy wheels: rosidl from the wheels, cmake and a C/C++ compiler from the
 # machine. The venv is the ament prefix: afterwards `VENV/bin/python -c 'import ost_msgs.msg'`
 # works with no environment, and `ros2 interface show ost_msgs/msg/ObjectFound` with
-# AMENT_PREFIX_PATH=VENV.
+# AMENT_PREFIX_PATH=VENV — or after `source VENV/setup.bash`, the prefix's own setup files that
+# ament writes with the build, as on a ROS install (/opt/ros/jazzy/setup.bash).
 #
 #   bringup_scripts/build_msgs.sh VENV
 #
@@ -45,8 +46,10 @@ log="$venv/build_msgs.log"; : > "$log"
 mkdir -p "$build"
 run() { "$@" >>"$log" 2>&1 || { stage_break; tail -n 30 "$log" >&2; die "$1 failed (full log: $log)"; }; }
 # AMENT_PREFIX_PATH at configure time: rosidl finds the typesupports through the ament index.
+# AMENT_CMAKE_ENVIRONMENT_GENERATION: the prefix-level setup.bash/local_setup.* of the venv.
 run env AMENT_PREFIX_PATH="$venv" cmake -S "$src" -B "$build" -DCMAKE_PREFIX_PATH="$venv" \
-  -DCMAKE_INSTALL_PREFIX="$venv" -DPython3_EXECUTABLE="$py" -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF
+  -DCMAKE_INSTALL_PREFIX="$venv" -DPython3_EXECUTABLE="$py" -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF \
+  -DAMENT_CMAKE_ENVIRONMENT_GENERATION=ON
 run env AMENT_PREFIX_PATH="$venv" cmake --build "$build" -j2
 run cmake --install "$build"
 "$py" -c 'import ost_msgs.msg' >>"$log" 2>&1 || { stage_break; tail -n 10 "$log" >&2; die "ost_msgs built but does not import (log: $log)"; }
