@@ -44,14 +44,17 @@ py="$venv/bin/python3"
 stage_begin "building the ost_msgs interfaces (the first time one to two minutes)"
 log="$venv/build_msgs.log"; : > "$log"
 mkdir -p "$build"
-run() { "$@" >>"$log" 2>&1 || { stage_break; tail -n 30 "$log" >&2; die "$1 failed (full log: $log)"; }; }
+run() {  # run STEP COMMAND...: the command's output to the log, shown when it fails
+  local step=$1; shift
+  "$@" >>"$log" 2>&1 || { stage_break; tail -n 30 "$log" >&2; die "$step failed (full log: $log)"; }
+}
 # AMENT_PREFIX_PATH at configure time: rosidl finds the typesupports through the ament index.
 # AMENT_CMAKE_ENVIRONMENT_GENERATION: the prefix-level setup.bash/local_setup.* of the venv.
-run env AMENT_PREFIX_PATH="$venv" cmake -S "$src" -B "$build" -DCMAKE_PREFIX_PATH="$venv" \
+run "cmake (configure)" env AMENT_PREFIX_PATH="$venv" cmake -S "$src" -B "$build" -DCMAKE_PREFIX_PATH="$venv" \
   -DCMAKE_INSTALL_PREFIX="$venv" -DPython3_EXECUTABLE="$py" -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF \
   -DAMENT_CMAKE_ENVIRONMENT_GENERATION=ON
-run env AMENT_PREFIX_PATH="$venv" cmake --build "$build" -j2
-run cmake --install "$build"
+run "cmake --build" env AMENT_PREFIX_PATH="$venv" cmake --build "$build" -j2
+run "cmake --install" cmake --install "$build"
 "$py" -c 'import ost_msgs.msg' >>"$log" 2>&1 || { stage_break; tail -n 10 "$log" >&2; die "ost_msgs built but does not import (log: $log)"; }
 echo "$stamp" > "$stamp_file"
 stage_end "ost_msgs interfaces built"
