@@ -5,7 +5,7 @@
 #   bringup_scripts/demo.sh [--agents N] [--objects M] [--seed S] [--ci K] [--protocol ccp|hcp]
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-venv="$(OST_SETUP_QUIET=1 bash "$repo/bringup_scripts/setup.sh" | tail -n 1)"
+venv="$(bash "$repo/bringup_scripts/setup.sh" | tail -n 1)"  # stage lines on stderr, if any
 agents=10 objects=20 seed=1 ci=1 protocol=ccp
 while [ $# -gt 0 ]; do
   case "$1" in

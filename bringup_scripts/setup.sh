@@ -6,18 +6,18 @@
 #   bringup_scripts/setup.sh          # creates/updates the venv (default: <repo>/.venv)
 #   OST_VENV=/path/venv  OST_PYTHON=/path/python3.12  bringup_scripts/setup.sh
 #
-# A second run with nothing changed returns in well under a second (stamp files record the hash
-# of the lock file and the packaging files, and of the interface files). Prints the venv path on
-# its last line.
+# Says what it does on stderr, one line per stage with the time it took (venv created, wheels
+# installed, interfaces built: bringup_scripts/stage.sh); a second run with nothing changed prints
+# nothing there and returns in about a second (stamp files record the hash of the lock file and the
+# packaging files, and of the interface files). Prints the venv path on stdout's last line.
 set -euo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 venv="${OST_VENV:-$repo/.venv}"
 lock="$repo/requirements.lock"
-quiet="${OST_SETUP_QUIET:-0}"
+. "$repo/bringup_scripts/stage.sh"
 
-say() { [ "$quiet" = 1 ] || echo "setup: $*" >&2; }
-die() { echo "setup: error: $*" >&2; exit 2; }
+die() { stage_break; echo "setup: error: $*" >&2; exit 2; }
 
 is_py312() {  # prints nothing; true when "$1" runs and is CPython 3.12
   "$1" -c 'import sys; sys.exit(0 if sys.version_info[:2] == (3, 12) else 1)' >/dev/null 2>&1
@@ -67,33 +67,38 @@ ament_register() {
   for exe in world_node agent_node watch_node; do ln -sfn "$venv/bin/$exe" "$venv/lib/ost_ros/$exe"; done
 }
 
+# Bytecode of the packages (only what is stale): with PYTHONDONTWRITEBYTECODE set, as on our CI
+# machines, every node would otherwise compile them at start (~80 ms of CPU per process).
+compile() {
+  (cd "$repo" && "$venv/bin/python" -m compileall -q agent_node world_node ost_msgs_py ost_ros >/dev/null)
+}
+
 finish() {  # every run: the interfaces (rebuilt only when a .msg changed) and the ament layout
   bash "$repo/bringup_scripts/build_msgs.sh" "$venv"
   ament_register
-  # Bytecode of the packages (only what is stale): with PYTHONDONTWRITEBYTECODE set, as on our
-  # CI machines, every node would otherwise compile them at start (~80 ms of CPU per process).
-  (cd "$repo" && "$venv/bin/python" -m compileall -q agent_node world_node ost_msgs_py ost_ros >/dev/null)
 }
 
 want="$(stamp_of)"
 if [ -x "$venv/bin/python" ] && [ -f "$venv/.ost-stamp" ] && [ "$(cat "$venv/.ost-stamp")" = "$want" ] \
    && is_py312 "$venv/bin/python"; then
+  compile
   finish
-  say "venv up to date: $venv"
   echo "$venv"
   exit 0
 fi
 
 py="$(find_python)"
 if [ ! -x "$venv/bin/python" ] || ! is_py312 "$venv/bin/python"; then
-  say "creating venv $venv with $py"
+  stage_begin "creating $venv"
   rm -rf "$venv"
   "$py" -m venv "$venv"
+  stage_end "venv created, $venv with $py"
 fi
-say "installing pinned dependencies (first run: about a minute)"
+stage_begin "installing the pinned wheels (requirements.lock; the first time about a minute)"
 log="$venv/setup.log"
 pip_install() {  # pip's chatter goes to the log; shown only when pip fails
   if ! "$venv/bin/python" -m pip install -q --disable-pip-version-check "$@" >>"$log" 2>&1; then
+    stage_break
     tail -n 30 "$log" >&2
     die "pip install $* failed (full log: $log)"
   fi
@@ -102,7 +107,8 @@ pip_install() {  # pip's chatter goes to the log; shown only when pip fails
 pip_install --upgrade "pip==26.3"
 pip_install -r "$lock"
 pip_install --no-deps --no-build-isolation -e "$repo"
+compile
+stage_end "wheels installed"
 finish
 echo "$want" > "$venv/.ost-stamp"
-say "ready: $venv (run: $venv/bin/ost --help)"
 echo "$venv"

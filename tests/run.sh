@@ -6,18 +6,25 @@
 #   OST_LINT=0 tests/run.sh ...  # skip ruff and mypy (they run first otherwise; pyproject.toml)
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-venv="$(OST_SETUP_QUIET=1 bash "$repo/bringup_scripts/setup.sh" | tail -n 1)"
+# Set-up says what it does, one line per stage that had something to do (nothing when all is there).
+venv="$(bash "$repo/bringup_scripts/setup.sh" | tail -n 1)"
 cd "$repo"
+. "$repo/bringup_scripts/stage.sh"
 # The simulated-host tests (tests/ros/test_hosts.py) need root and nftables; as root, install the
 # Debian package once if it is missing (they skip, saying why, when either is unavailable).
 if [ "$(id -u)" = 0 ] && ! command -v nft >/dev/null && command -v apt-get >/dev/null; then
-  echo "tests/run.sh: installing nftables for the simulated-host tests" >&2
-  (apt-get install -y -q nftables >/dev/null 2>&1 \
-    || { apt-get update -q >/dev/null 2>&1 && apt-get install -y -q nftables >/dev/null 2>&1; }) \
-    || echo "tests/run.sh: could not install nftables; the loss and multicast-blocking tests will skip" >&2
+  stage_begin "installing nftables for the simulated-host tests (apt-get)"
+  if (apt-get install -y -q nftables >/dev/null 2>&1 \
+      || { apt-get update -q >/dev/null 2>&1 && apt-get install -y -q nftables >/dev/null 2>&1; }); then
+    stage_end "nftables installed (apt-get)"
+  else
+    stage_break
+    echo "tests/run.sh: could not install nftables; the loss and multicast-blocking tests will skip" >&2
+  fi
 fi
-# The real ros2 CLI and launch, for tests/ros/test_ros2cli.py (test tooling from ../shared/ros2,
-# not part of the product; without those sources the tests skip, saying why).
+# colcon, the real ros2 CLI and launch, for tests/ros/test_colcon.py and test_ros2cli.py (test
+# tooling: colcon from PyPI, the CLI from ../shared/ros2 — without those sources the CLI tests
+# skip, saying why; not part of the product).
 bash "$repo/tests/ros2_tools.sh" "$venv"
 # Lint, format and types first (seconds): the same checks for everyone (pyproject.toml).
 if [ "${OST_LINT:-1}" = 1 ]; then
