@@ -1,6 +1,6 @@
 """A whole run under ``ros2 launch``: the world node and one agent node per robot.
 
-    ros2 launch ost_ros team.launch.py agents:=4 objects:=8 seed:=1 [protocol:=hcp] [ci:=2]
+    ros2 launch ost_ros team.launch.py agents:=4 objects:=8 seed:=1 nmax:=4 [protocol:=hcp] [ci:=2]
     ros2 launch ost_ros team.launch.py scenario:=/path/s.yaml [namespace:=team_a]
         [result_file:=/tmp/result.json] [record:=/tmp/run.mcap] [foxglove:=8765] [insecure:=true]
 
