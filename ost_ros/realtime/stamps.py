@@ -193,7 +193,8 @@ class Batches:
     # ------------------------------------------------------------------ batches
 
     def participants(self, t: int) -> list[int]:
-        """Who batch t waits for: the team without robots failed at or before it."""
+        """Who batch t waits for the watermark of: the team without robots failed at or before
+        it (their counted messages must still all be in: :meth:`complete`)."""
         return [p for p in self.team if p not in self.failed or self.failed[p].t > t]
 
     def lacking(self, t: int) -> list[int]:
@@ -216,8 +217,10 @@ class Batches:
         return True
 
     def _lacks(self, p: int, t: int) -> bool:
-        if p in self.failed and self.failed[p].t <= t:
-            return False
+        notice = self.failed.get(p)
+        if notice is not None and notice.t <= t:  # gone: but every message of it that counts
+            return p != self.me and self._peers[p].contiguous < notice.seq  # must be in
+
         if p == self.me:
             return self.speaker.committed < t
         return not self._peers[p].covers(t)

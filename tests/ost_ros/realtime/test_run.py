@@ -40,12 +40,12 @@ def teams(draw, agents=(1, 6), objects=(0, 7)):
 
 
 @st.composite
-def failures(draw, s, horizon=60):
+def failures(draw, s, horizon=60, most=None):
     """Some robots failing, sometimes so many that objects cannot be moved any more."""
     if s.n_agents < 2 or not draw(st.booleans()):
         return {}
     ids = [a.id for a in s.agents]
-    dead = draw(st.permutations(ids))[: draw(st.integers(1, len(ids) - 1))]
+    dead = draw(st.permutations(ids))[: draw(st.integers(1, min(most or len(ids), len(ids) - 1)))]
     return {a: draw(st.integers(0, horizon)) for a in dead}
 
 
@@ -62,18 +62,20 @@ def check_run(s, r, report, dead):
     assert r.completed or "cannot be delivered" in (r.error or "")
 
 
-@settings(max_examples=70, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(data=st.data())
 def test_at_latency_zero_the_run_is_the_step_engines(data):
+    # (one failure: a robot failing while the team recovers from another may order the orphaned
+    # sweeps differently — docs/realtime.md, "At latency 0")
     s, protocol, policy = data.draw(teams())
-    dead = data.draw(failures(s))
+    dead = data.draw(failures(s, most=1))
     ref = simulate(s, protocol, policy, engine="step", failures=dead)
     r, report = run_realtime(s, protocol, policy, failures=dead)
     assert r.to_dict() == ref.to_dict()
     assert report.disagreements == 0 and all(lag == 0 for lag in report.lag.values())
 
 
-@settings(max_examples=90, deadline=None)
+@settings(max_examples=300, deadline=None)
 @given(data=st.data())
 def test_without_a_barrier_every_object_is_carried_by_its_group_and_all_agree(data):
     s, protocol, policy = data.draw(teams())
@@ -101,7 +103,7 @@ def test_without_a_barrier_every_object_is_carried_by_its_group_and_all_agree(da
     assert r.steps <= 2 * (2 * step_limit(s, len(dead)) + slack + sum(st[2] for st in stalls))
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=40, deadline=None)
 @given(teams(agents=(2, 6), objects=(1, 7)), st.integers(0, 10**6))
 def test_more_latency_and_reordering_never_break_agreement(team, seed):
     s, protocol, policy = team

@@ -119,3 +119,16 @@ def test_a_batch_before_a_notice_waits_for_the_dead_robots_counted_messages():
         b.accept(env(1, seq, stamp))
     assert [(t, b.take(t)) for t in (2, 5)] == [(2, ["1.1"]), (5, ["1.2"])]
     assert b.next_stamp() == 8  # its message stamped 9 is past its notice: gone
+
+
+def test_a_later_batch_waits_for_a_dead_robots_message_still_on_the_way():
+    me = Speaker(0)
+    me.commit(9)
+    b = Batches(0, (0, 1, 2), me)
+    b.accept_mark(Mark(2, 9, 0))
+    b.accept_lost(Lost(1, 1, seq=1, at=(0, 0)))  # it sent one message before it failed
+    b.accept(env(2, 1, 4))
+    assert not b.complete(4)  # its message (stamped 0, say) may still come: batch 0 first
+    b.accept(env(1, 1, 0))
+    notice = b.failed[1]
+    assert [(t, b.take(t)) for t in (0, 1, 4)] == [(0, ["1.1"]), (1, [notice]), (4, ["2.1"])]
