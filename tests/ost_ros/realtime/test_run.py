@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import simulate, step_limit
-from ost_ros.model import AgentSpec, Grid, ObjectSpec
+from ost_ros.model import Grid, ObjectSpec
 from ost_ros.negotiation.slots import NegotiationSettings
 from ost_ros.protocols import ProtocolError
 from ost_ros.protocols.ncp import SPEC as NCP
@@ -212,4 +212,3 @@ def test_a_robot_that_is_never_ahead_of_its_sweep_is_found_where_it_was():
     assert _remainder(sw, 4, 1, (1, 0)) == path[3:]  # predicted at index 4: the second visit
     assert _remainder(sw, 2, 1, (1, 0)) == path[1:]  # predicted at index 2: the first
     assert _remainder(sw, 2, 1, (5, 5)) == path  # not on it: all of it
-    assert AgentSpec  # (import kept for readers building teams by hand)
