@@ -62,7 +62,7 @@ def check_run(s, r, report, dead):
     assert r.completed or "cannot be delivered" in (r.error or "")
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=300, deadline=None)
 @given(data=st.data())
 def test_at_latency_zero_the_run_is_the_step_engines(data):
     # (one failure: a robot failing while the team recovers from another may order the orphaned
@@ -75,7 +75,7 @@ def test_at_latency_zero_the_run_is_the_step_engines(data):
     assert report.disagreements == 0 and all(lag == 0 for lag in report.lag.values())
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=1000, deadline=None)
 @given(data=st.data())
 def test_without_a_barrier_every_object_is_carried_by_its_group_and_all_agree(data):
     s, protocol, policy = data.draw(teams())
