@@ -255,6 +255,9 @@ class RealtimeAgent:
             self.goal, self._sweep = None, None
             if res.code == "MEMBER_FAILED" and self.agent.current is not None:
                 self._blocked = self.agent.current.object  # until the comm hears of the failure
+            elif res.code == "START":  # planned from a stale feedback: look again, decide again
+                self._decided = -1.0
+                self._decide_at(now, now)
             elif res.outcome == REFUSED:
                 self.agent.warnings.append(f"goal refused at {res.time}: {res.reason}")
         return self._flush(now)

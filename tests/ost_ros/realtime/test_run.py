@@ -212,3 +212,25 @@ def test_a_robot_that_is_never_ahead_of_its_sweep_is_found_where_it_was():
     assert _remainder(sw, 4, 1, (1, 0)) == path[3:]  # predicted at index 4: the second visit
     assert _remainder(sw, 2, 1, (1, 0)) == path[1:]  # predicted at index 2: the first
     assert _remainder(sw, 2, 1, (5, 5)) == path  # not on it: all of it
+
+
+def test_a_goal_planned_from_a_stale_feedback_is_decided_again(monkeypatch):
+    # The base's answer comes two moves late (as over a slow link): the first goals start where
+    # the robot no longer is; the base refuses them (START) and the robot decides again.
+    from ost_ros.realtime.world import RealtimeWorld
+
+    s = build_scenario(Grid(20, 6), generate_objects(4, 5, Grid(20, 6), 2), n_agents=2, nmax=2)
+    feedback = RealtimeWorld.feedback
+    stale = {"left": 3}
+
+    def late(self, agent, at):
+        fb = feedback(self, agent, at)
+        if stale["left"] and fb.index > 1:  # where it was two cells ago
+            stale["left"] -= 1
+            return dataclasses.replace(fb, cell=self.bots[agent].route.cells[fb.index - 2])
+        return fb
+
+    monkeypatch.setattr(RealtimeWorld, "feedback", late)
+    r, report = run_realtime(s, "ccp", CoordinationPolicy(ci=1))
+    assert stale["left"] == 0 and r.completed and report.disagreements == 0
+    assert len(r.rejections) == 3 and all("path starts at" in x for x in r.rejections)
