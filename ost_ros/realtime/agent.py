@@ -495,11 +495,12 @@ class RealtimeAgent:
             if t is None:
                 return
             if not self.batches.complete(t):
+                if self.speaker.committed < t:
+                    self._wake(float(t))  # its own clock first (a Need for later may be moot)
+                    return
                 need = self.batches.ask(t)
                 if need is not None:
                     self._out.append(Publish(need))
-                if self.speaker.committed < t:
-                    self._wake(float(t))
                 return
             self._take(t, now)
 
