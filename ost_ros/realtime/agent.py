@@ -174,7 +174,6 @@ class RealtimeAgent:
     speaker: Speaker = field(init=False)
     batches: Batches = field(init=False)
     max_lag: float = 0.0  # the most a batch was processed after its stamp (steps)
-    batches_taken: int = 0
     sent: list[int] = field(default_factory=list)  # the stamps of the protocol messages it sent
     digests: dict[int, Digest] = field(default_factory=dict)  # stamp -> digest (coordinations)
     processed: set[int] = field(default_factory=set)  # stamps of every batch taken
@@ -189,9 +188,8 @@ class RealtimeAgent:
     _dues: set[float] = field(default_factory=set)  # times a decision is due at
     _carry_started: int = -1  # object whose carry the base has begun
     _blocked: int = -1  # object whose group lost a member: no CARRY for it until the comm knows
-    _frozen: bool = False  # a failure is being recovered from: status due
-    _keep: int = 0
-    _status_due: bool = False
+    _keep: int = 0  # own schedule entries done or under way when a failure was learnt
+    _status_due: bool = False  # a failure was learnt: its status goes out at the next decision
     _commit_at: float | None = None  # a time to commit once the decision asked for is taken
     _event: int | None = None  # the comm's next event after the last batch (cached)
     _event_for: int = -2
@@ -506,7 +504,6 @@ class RealtimeAgent:
 
     def _take(self, t: int, now: float) -> None:
         msgs = self.batches.take(t)
-        self.batches_taken += 1
         self.processed.add(t)
         self.max_lag = max(self.max_lag, now - t)
         self.agent.communicate(t, msgs)
