@@ -154,8 +154,8 @@ def agreement(runs: int, seed: int) -> list[str]:
         f"{stats['impossible']} | {stats['deadlock']} | {cpu:.0f} s |",
         "",
         f"At latency 0, {eq['runs']} random runs (failures included) against `ost sim --engine step`: "
-        f"{eq['equal']} identical, {eq['cascade']} different — each with two or more failures, a robot "
-        "failing while the team recovers from another (the orphaned sweeps handed out in another "
+        f"{eq['equal']} identical; {eq['cascade']} different with two or more failures (a robot "
+        "failing while the team recovers from another may get the orphaned sweeps in another "
         f"order); {eq['runs'] - eq['equal'] - eq['cascade']} other differences.",
         "",
     ]
