@@ -250,7 +250,7 @@ class RealtimeAgent:
             self.goal, self._sweep = None, None
             self._decide_at(res.time, now)
         elif res.outcome in (ABORTED, REFUSED):
-            self.goal, self._sweep = None, None
+            self.goal, self._sweep, self._carry_started = None, None, -1
             if res.code == "MEMBER_FAILED" and self.agent.current is not None:
                 self._blocked = self.agent.current.object  # until the comm hears of the failure
             elif res.code == "START":  # planned from a stale feedback: look again, decide again
@@ -389,8 +389,7 @@ class RealtimeAgent:
         self.goal = goal
         self._sweep = sweep
         self.label = goal.state
-        if not isinstance(goal, Carry) or goal.object != self._carry_started:
-            self._carry_started = -1
+        self._carry_started = -1  # a new goal: no lift of it yet (on_carry says when)
         self._out.append(SendGoal(self.goal_id, goal, fb.time))
 
     # ------------------------------------------------------------------ failures

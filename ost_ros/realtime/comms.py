@@ -71,6 +71,10 @@ class RtRecovery:
         self._dead_drops: dict[int, Cell] = {}
         self.kept_len: int | None = None  # schedule length after the last recovery's pruning
         self.moot = 0  # messages a failure made moot before they arrived
+        # The failures taken in since the last completed recovery, and the sweeps they orphaned,
+        # keyed so that they are handed out in the order the lockstep module would have them
+        self._episode: list[tuple[int, int]] = []  # (stamp, agent), in the order taken in
+        self._keyed: list[tuple[tuple[int, int, int], tuple[Cell, ...]]] = []
         self.recovered = False  # a recovery completed (the body resyncs its task list)
         super()._init_recovery()  # type: ignore[misc]
 
@@ -127,6 +131,8 @@ class RtRecovery:
             return
         k = self.knowledge
         notice = self._notice.get(agent)
+        before, rank = list(self._episode), sum(1 for f, _ in self._episode if f == t)
+        self._episode.append((t, agent))
         self.lost[agent] = t
         self._alive = None
         k.searched.discard(agent)
@@ -138,8 +144,13 @@ class RtRecovery:
                 rest = (
                     _remainder(sw, t, period, notice.at if notice else None) if i == 0 else sw.path[sw.walk :]
                 )
-                if rest:
-                    self.orphans.append(tuple(rest))
+                if not rest:
+                    continue
+                # a take-over not begun by an earlier failure of this recovery was, in lockstep
+                # terms, put back into the pool then (as a survivor's): keyed so
+                early = [f for f, _ in before if sw.start > f] if sw is not sweeps[0] else []
+                key = (min(early), 1, self._position(sw)) if early else (t, 2 * rank, i)
+                self._keyed.append((key, tuple(rest)))
         self.owed[agent] = 0
         if notice is not None:
             self._dead_delivered.update(notice.delivered)
@@ -150,6 +161,10 @@ class RtRecovery:
         self.statuses.clear()
         self.reset = True
         self._cancel_pending(t)  # type: ignore[attr-defined]
+
+    def _position(self, sw: Sweep) -> int:
+        sched = self.knowledge.schedule
+        return next((p for p, e in enumerate(sched) if e is sw), len(sched))
 
     def _pruned(self, objects: list[int]) -> None:
         """Objects a recovery took out of the schedule (for protocols that care)."""
@@ -174,7 +189,9 @@ class RtRecovery:
                 continue
             if isinstance(e, Sweep):
                 if e.agent not in self.lost:  # a survivor's take-over not begun: back to the pool
-                    self.orphans.append(tuple(e.path[e.walk :]))
+                    early = [f for f, _ in self._episode if e.start > f]
+                    key = (min(early) if early else self._episode[-1][0], 1, pos)
+                    self._keyed.append((key, tuple(e.path[e.walk :])))
                     self._sweeps_of(e.agent).remove(e)
                     self.owed[e.agent] -= 1
                     if self.owed[e.agent] == 0:
@@ -200,6 +217,9 @@ class RtRecovery:
             k.free_loc[i] = st.location
             k.lengths[i] = min(k.lengths[i], st.free_at)
         k.rebase()
+        self.orphans.extend(cells for _, cells in sorted(self._keyed, key=lambda kc: kc[0]))
+        self._keyed.clear()
+        self._episode.clear()
         periods = self.team.period_array()
         for cells in self.orphans:
             cost, loc = k.costs(t)

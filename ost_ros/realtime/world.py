@@ -279,6 +279,7 @@ class RealtimeWorld:
         self._holds: dict[int, dict[int, tuple[int, ...]]] = defaultdict(dict)  # obj -> agent -> group
         self._carries: dict[int, _Carry] = {}
         self._depart: dict[int, tuple[float, int]] = {}  # obj -> (time, version) of a pending lift
+        self._serial = 0  # versions of lifts and carries: never reused, so a stale event never fits
         self._heap: list[tuple[float, int, int, tuple]] = []
         self._count = 0
         self._rng = np.random.default_rng(self.seed)
@@ -471,6 +472,10 @@ class RealtimeWorld:
         for k, objs in hits.items():
             self._push(r.arrive(k), 4, ("detect", b.id, b.goal, b.version, k, tuple(sorted(objs))))
 
+    def _next(self) -> int:
+        self._serial += 1
+        return self._serial
+
     def _factor(self) -> float:
         if self.speed_jitter <= 0:
             return 1.0
@@ -492,18 +497,17 @@ class RealtimeWorld:
                 bots = [self.bots[j] for j in group]
                 k = group_period([x.period for x in bots])
                 start = max(max(x.time for x in bots), max(x.stall_until for x in bots), self.now)
-                _, version = self._depart.get(oid, (0.0, 0))
                 t = _first_movable(start, k)
-                self._depart[oid] = (t, version + 1)
-                self._push(t, 1, ("lift", oid, version + 1, group))
+                version = self._next()
+                self._depart[oid] = (t, version)
+                self._push(t, 1, ("lift", oid, version, group))
                 return
 
     def _unhold(self, b: _Bot) -> None:
         holds = self._holds.get(b.holding, {})
         holds.pop(b.id, None)
         if b.holding in self._depart:  # a lift scheduled with it: called off
-            version = self._depart.pop(b.holding)[1]
-            self._depart[b.holding] = (math.inf, version + 1)
+            self._depart[b.holding] = (math.inf, self._next())
 
     def _lift(self, oid: int, group: tuple[int, ...], t: float) -> list[Event]:
         o = self.objects[oid]
@@ -513,7 +517,7 @@ class RealtimeWorld:
         cells = route([o.at, o.spec.destination])
         depart = [t + i * k * f for i in range(len(cells) - 1)]
         r = _Route(cells, t, depart, f)
-        run = _Carry(oid, group, r, k)
+        run = _Carry(oid, group, r, k, self._next())
         self._carries[oid] = run
         self._holds.pop(oid, None)
         self._depart.pop(oid, None)
@@ -552,7 +556,6 @@ class RealtimeWorld:
         o = self.objects[run.object]
         o.moving, o.at = False, r.cells[m]
         del self._carries[run.object]
-        run.version += 1
         for j in run.group:
             x = self.bots[j]
             if j == culprit or not x.alive:
@@ -647,7 +650,7 @@ class RealtimeWorld:
         elif b.kind == "carry":
             run = self._carries[b.holding]
             run.route.shift(t, steps)
-            run.version += 1
+            run.version = self._next()
             self._push(run.route.arrive(len(run.route.cells) - 1), 2, ("deliver", run.object, run.version))
         elif b.kind == "hold" and b.holding in self._depart:
             self._check_group(b.holding)
