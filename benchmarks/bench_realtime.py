@@ -217,16 +217,17 @@ def figure(data: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     names = sorted({k[0] for k in data}, key=lambda n: ("N=50" in n, n))
-    fig, axes = plt.subplots(1, len(names), figsize=(11, 4), sharey=True)
+    fig, axes = plt.subplots(1, len(names), figsize=(11, 4.2), sharey=True)
     for ax, name in zip(np.atleast_1d(axes), names):
         for (n, label), rel in data.items():
             if n == name:
-                ax.plot(LATENCIES, rel, marker="o", label=label)
+                ax.plot(LATENCIES, [1 + r / 100 for r in rel], marker="o", label=label)
         ax.set_title(name)
         ax.set_xlabel("latency L (steps; jitter up to L/2)")
-        ax.axhline(0, color="grey", lw=0.8)
-        ax.grid(alpha=0.3)
-    np.atleast_1d(axes)[0].set_ylabel("makespan vs ost sim (%)")
+        ax.set_yscale("log")
+        ax.axhline(1, color="grey", lw=0.8)
+        ax.grid(alpha=0.3, which="both")
+    np.atleast_1d(axes)[0].set_ylabel("makespan / ost sim's (log scale)")
     np.atleast_1d(axes)[-1].legend(fontsize=8)
     fig.suptitle("The cost of latency without a barrier (0 disagreements in every run)")
     fig.tight_layout()
