@@ -178,26 +178,24 @@ class _Run:
         self.schedule_world()
 
     def loop(self, limit: float) -> tuple[str | None, float, float | None]:
-        """Events in time order until the world is done (and the rest of that moment has run),
-        nothing is left (a deadlock) or the limit passes. Returns (error, last time, end)."""
+        """Events in time order until the world is done at the end of a moment (as the lockstep
+        world is at the end of a step: a robot finishing and one called back to work in the same
+        moment leave it not done), nothing is left (a deadlock) or the limit passes. Returns
+        (error, last time, end)."""
         queue, now = self.queue, 0.0
-        end: float | None = None
         while True:
-            if end is None and self.world.done:
-                end = now
-            if not len(queue):
-                if end is None:
-                    return (
-                        f"deadlock: nothing left to happen at step {math.ceil(now)} and the run is not done",
-                        now,
-                        end,
-                    )
-                return None, now, end
-            if end is not None and (queue.peek() or 0.0) > end:
-                return None, now, end
+            nxt = queue.peek()
+            if (nxt is None or nxt > now + 1e-9) and self.world.done:
+                return None, now, now
+            if nxt is None:
+                return (
+                    f"deadlock: nothing left to happen at step {math.ceil(now)} and the run is not done",
+                    now,
+                    None,
+                )
             t, phase, ev = queue.pop()
             if t > limit:
-                return f"not finished after {limit} steps (deadlock or step limit)", now, end
+                return f"not finished after {limit} steps (deadlock or step limit)", now, None
             now = t
             self.report.events += 1
             if phase == WORLD:
