@@ -212,6 +212,7 @@ def latency_table(seeds: int) -> tuple[list[str], dict]:
 
 def figure(data: dict, path: Path) -> None:
     import matplotlib
+    import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -225,6 +226,9 @@ def figure(data: dict, path: Path) -> None:
         ax.set_title(name)
         ax.set_xlabel("latency L (steps; jitter up to L/2)")
         ax.set_yscale("log")
+        ax.set_yticks([0.8, 0.9, 1, 1.25, 1.5, 2, 3, 5])
+        ax.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}×"))
+        ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.axhline(1, color="grey", lw=0.8)
         ax.grid(alpha=0.3, which="both")
     np.atleast_1d(axes)[0].set_ylabel("makespan / ost sim's (log scale)")
@@ -321,8 +325,21 @@ def refused(runs: int) -> list[str]:
     ]
 
 
+def tables(md: Path) -> dict:
+    """(b)'s changes in % read back from a realtime.md this script wrote (to redraw its figure)."""
+    data, name = {}, None
+    for line in md.read_text().splitlines():
+        if line.startswith("**") and line.endswith("**"):
+            name = line.strip("*")
+        elif name and line.startswith("| ") and "%" in line:
+            cells = [c.strip() for c in line.strip("|").split("|")]
+            data[(name, cells[0])] = [float(c.split("(")[1].split(" %")[0]) for c in cells[2:]]
+    return data
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--redraw", metavar="MD", help="only redraw (b)'s figure from a realtime.md it wrote")
     p.add_argument("--runs", type=int, default=1000, help="random runs for (a) (1000)")
     p.add_argument("--seeds", type=int, default=3, help="latency seeds per cell of (b) (3)")
     p.add_argument("--out", default="/tmp/ost_bench_realtime")
@@ -332,6 +349,11 @@ def main() -> None:
     a = p.parse_args()
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
+    if a.redraw:
+        figure(tables(Path(a.redraw)), out / "realtime_latency.png")
+        if a.docs:
+            shutil.copy(out / "realtime_latency.png", REPO / "docs" / "images" / "realtime_latency.png")
+        return
     lines = [
         "# Robots without a barrier: measurements",
         "",
