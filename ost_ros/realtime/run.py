@@ -31,7 +31,7 @@ from ost_ros.realtime.agent import (
     WakeAt,
 )
 from ost_ros.realtime.comms import RtAuctionComm, RtCcpComm, RtNcpComm
-from ost_ros.realtime.messages import Digest, Envelope, Mark, Need
+from ost_ros.realtime.messages import Digest, Mark, Need
 from ost_ros.realtime.net import DELIVER, KILL, WAKE, WORLD, EventQueue, Latency, Network
 from ost_ros.realtime.world import CarryStarted, Detection, GoalResult, RealtimeWorld
 from ost_ros.result import RunResult
@@ -304,7 +304,6 @@ def disagreements(agents: Sequence[RealtimeAgent]) -> tuple[int, int]:
 
 __all__ = [
     "REALTIME",
-    "Envelope",
     "Latency",
     "RealtimeReport",
     "check_realtime",
