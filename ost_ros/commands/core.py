@@ -12,6 +12,7 @@ from typing import Any
 from ost_ros import protocols
 from ost_ros import validate as v
 from ost_ros.bounds import lower_bound
+from ost_ros.commands import realtime
 from ost_ros.commands.args import failure, fraction, leaf, load_scenario_arg, natural, period_list, positive
 from ost_ros.coordination import ORGANISATIONS, CoordinationPolicy, coordinate
 from ost_ros.engines import ENGINES, StepHook, check_failures, choose_engine, simulate
@@ -183,6 +184,7 @@ def add_sim_parser(sub) -> None:
     p.add_argument("--plot", metavar="PNG", help="also draw the map and every agent's timeline")
     add_animate_arguments(p)
     add_progress_argument(p)
+    realtime.add_arguments(p)  # --latency L[:J] and its options: the run without a barrier
 
 
 def add_protocol_options(p: argparse.ArgumentParser) -> None:
@@ -236,6 +238,9 @@ def cmd_sim(args: argparse.Namespace) -> int:
             check_failures(scenario, args.protocol, failures, policy)
         except ValueError as exc:
             raise UsageError(f"--fail: {exc}") from None
+    realtime.check(args)
+    if args.latency is not None:  # the run without a barrier (ost_ros.realtime)
+        return realtime.run(args, scenario, policy, settings, failures)
     if args.animate:
         check_animation(args)
     engine = _sim_engine(args, scenario, policy, failures)

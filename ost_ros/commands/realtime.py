@@ -1,0 +1,144 @@
+"""``ost sim SCENARIO --latency L[:J]``: the run without a barrier, in process — the realtime
+runtimes on a discrete-event network whose copies of each message take L + U{0..J} steps
+(seeded), with speed noise and stalls as options. Output as ``ost sim``; JSON adds ``mode``,
+``latency``, ``disagreements`` and each agent's largest lag (docs/realtime.md)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+from ost_ros.bounds import lower_bound
+from ost_ros.coordination import CoordinationPolicy
+from ost_ros.errors import UsageError
+from ost_ros.model import Scenario
+from ost_ros.protocols import ProtocolError
+
+
+def latency(text: str) -> tuple[float, float]:
+    """argparse type: L or L:J, steps ≥ 0 (integers or decimals)."""
+    base, sep, jitter = text.partition(":")
+    try:
+        lat, jit = float(base), float(jitter) if sep else 0.0
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected L or L:J (steps), got {text!r}") from None
+    if lat < 0 or jit < 0 or lat != lat or jit != jit or lat == float("inf") or jit == float("inf"):
+        raise argparse.ArgumentTypeError(f"latency and jitter must be finite and ≥ 0, got {text!r}")
+    return lat, jit
+
+
+def stall(text: str) -> tuple[int, int, int]:
+    """argparse type: AGENT:STEP:S (robot AGENT stands still for S steps from step STEP)."""
+    parts = text.split(":")
+    try:
+        a, t, s = (int(x) for x in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected AGENT:STEP:STEPS, got {text!r}") from None
+    if a < 0 or t < 0 or s < 1:
+        raise argparse.ArgumentTypeError(f"expected AGENT:STEP:STEPS (≥ 0, ≥ 0, ≥ 1), got {text!r}")
+    return a, t, s
+
+
+def jitter(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid number {text!r}") from None
+    if not 0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be ≥ 0, got {text!r}")
+    return value
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("without a barrier (realtime runtimes, in process)")
+    g.add_argument(
+        "--latency",
+        type=latency,
+        metavar="L[:J]",
+        help="run without a barrier: every message takes L steps plus up to J more (seeded, per "
+        "receiver); 0 gives ost sim's result (protocols: ccp with the paper's planner, ncp, auction)",
+    )
+    g.add_argument("--latency-seed", type=int, default=None, metavar="S", help="seed of the delays (0)")
+    g.add_argument(
+        "--speed-jitter",
+        type=jitter,
+        default=None,
+        metavar="X",
+        help="each goal's time per cell is multiplied by a seeded draw in [1, 1+X] (needs --latency)",
+    )
+    g.add_argument(
+        "--stall",
+        type=stall,
+        action="append",
+        default=[],
+        metavar="AGENT:STEP:S",
+        help="robot AGENT stands still for S steps from step STEP (repeatable; needs --latency)",
+    )
+
+
+def check(args: argparse.Namespace) -> None:
+    """The realtime options make sense together (one line otherwise)."""
+    if args.latency is None:
+        for flag, given in (
+            ("--latency-seed", args.latency_seed is not None),
+            ("--speed-jitter", args.speed_jitter is not None),
+            ("--stall", bool(args.stall)),
+        ):
+            if given:
+                raise UsageError(f"{flag} needs --latency (the run without a barrier)")
+        return
+    for flag, given in (
+        ("--plot", bool(args.plot)),
+        ("--animate", bool(args.animate)),
+        ("--engine", args.engine != "auto"),
+    ):
+        if given:
+            raise UsageError(f"{flag} is for the lockstep engines, not with --latency")
+
+
+def run(
+    args: argparse.Namespace,
+    scenario: Scenario,
+    policy: CoordinationPolicy,
+    settings: Any,
+    failures: dict[int, int],
+) -> int:
+    """The realtime run of ``ost sim``: print the result (text or JSON), exit 0 if completed."""
+    from ost_ros.realtime.net import Latency
+    from ost_ros.realtime.run import check_realtime, run_realtime
+
+    try:
+        check_realtime(args.protocol, policy, settings)
+    except ProtocolError as exc:
+        raise UsageError(f"--latency: {exc}") from None
+    ids = {a.id for a in scenario.agents}
+    for a, _, _ in args.stall:
+        if a not in ids:
+            raise UsageError(f"--stall: no agent {a} (team {sorted(ids)})")
+    lat, jit = args.latency
+    result, report = run_realtime(
+        scenario,
+        args.protocol,
+        policy,
+        settings,
+        latency=Latency(lat, jit),
+        seed=args.latency_seed or 0,
+        speed_jitter=args.speed_jitter or 0.0,
+        stalls=[(a, float(t), float(s)) for a, t, s in args.stall],
+        failures=failures,
+        max_steps=args.max_steps,
+    )
+    result.lower_bound = lower_bound(scenario).value
+    if args.json:
+        print(json.dumps(result.to_dict() | report.to_dict(), indent=1))
+    else:
+        print(result.summary())
+        lags = report.lag.values()
+        print(
+            f"\nrealtime        latency {report.to_dict()['latency'][0]}"
+            f"+0..{report.to_dict()['latency'][1]} steps (seed {report.seed}), "
+            f"disagreements {report.disagreements} in {report.coordinations} coordinations, "
+            f"largest lag {max(lags, default=0):g} steps"
+        )
+    return 0 if result.completed and report.disagreements == 0 else 1

@@ -1,0 +1,552 @@
+"""One robot without a barrier, ROS-free: its body (search and motion, driving its base by goals)
+and its comm module (fed batch by batch by the agreement layer).
+
+:class:`RealtimeAgent` is a set of callbacks — ``start``, ``on_message``, ``on_result``,
+``on_detection``, ``on_carry``, ``on_feedback``, ``on_clock`` — each given the current time and
+returning what to do as a list of outputs: :class:`Publish` (to every peer), :class:`SendGoal`
+(to its own base), :class:`AskFeedback` (where will the base be at a time), :class:`WakeAt` (call
+``on_clock`` then), :class:`~ost_ros.realtime.messages.Digest` (for observers). It knows nothing
+of who calls it: the in-process run (:mod:`ost_ros.realtime.run`) and the agent node wire the
+same object.
+
+The body reuses the protocol's own agent (:class:`RtScheduleAgent`, a
+:class:`~ost_ros.protocols.shared.agent.ScheduleAgent` that never writes into the comm's
+knowledge) the way the event engine does: at each decision (a goal reached, news in its sensor,
+the comm changed something, a step after it acted) it asks for its own plan; a settled first
+segment becomes a goal (sweep/walk: FOLLOW that path; hold/carry: CARRY with the assignment's
+group; wait: STAND), otherwise it acts for one step. So at latency 0 the run is the step engine's.
+
+The comm module sees only complete batches, in stamp order: the schedule it computes is a
+function of the stamped messages. Everything the body reports — finds, search done, its status
+after a failure — goes out as a stamped message and enters the comm (its own included) only
+through a batch.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from ost_ros.coordination import Assignment
+from ost_ros.model import Cell, can_move
+from ost_ros.motion import apply
+from ost_ros.protocols.plans import Plan, Segment
+from ost_ros.protocols.shared.agent import GlobalState, ScheduleAgent, _Planner
+from ost_ros.protocols.shared.recovery import Sweep
+from ost_ros.realtime.messages import (
+    FINISH_STATE,
+    SEARCHING_STATE,
+    Action,
+    ActionKind,
+    Digest,
+    Envelope,
+    Lost,
+    Mark,
+    Need,
+    ObjectFound,
+    ObjectInfo,
+    Observation,
+    RtStatus,
+    SearchDone,
+)
+from ost_ros.realtime.stamps import Batches, Speaker, stamp_of
+from ost_ros.realtime.world import (
+    ABORTED,
+    REACHED,
+    REFUSED,
+    Carry,
+    CarryStarted,
+    Detection,
+    Feedback,
+    Follow,
+    Goal,
+    GoalResult,
+    Stand,
+)
+from ost_ros.search import SearchState, route
+
+EPS = 1e-9
+
+
+# ----------------------------------------------------------------------------- outputs
+
+
+@dataclass(frozen=True)
+class Publish:
+    """Broadcast to every peer (an Envelope, a Mark or a Need)."""
+
+    payload: Envelope | Mark | Need
+
+
+@dataclass(frozen=True)
+class SendGoal:
+    """A goal for the agent's own base (client id ``id``), taking over at its first boundary at or
+    after ``at``."""
+
+    id: int
+    goal: Goal
+    at: float
+
+
+@dataclass(frozen=True)
+class AskFeedback:
+    """Where will the base be at its first boundary at or after ``at`` (answer: ``on_feedback``)."""
+
+    at: float
+
+
+@dataclass(frozen=True)
+class WakeAt:
+    time: float
+
+
+Output = Publish | SendGoal | AskFeedback | WakeAt | Digest
+
+
+# ----------------------------------------------------------------------------- the body
+
+
+class RtScheduleAgent(ScheduleAgent):
+    """The schedule agent's body without a barrier: its finds go out as messages and enter the
+    shared knowledge only through its comm's batches (``reported`` remembers what it said)."""
+
+    def __init__(self, *args, **kw) -> None:
+        super().__init__(*args, **kw)
+        self.reported: set[int] = set()
+        self.sweep_task: Sweep | None = None  # the take-over sweep it is on (None: its own)
+
+    def act(self, obs: Observation) -> Action:
+        self.t, self.position = obs.t, obs.position
+        self._search(obs)
+        kind, direction, obj = self._motion(obs)
+        return Action(self.id, self.t, kind, direction, obj, self.state.value)
+
+    def _search(self, obs: Observation) -> None:
+        if self.state is not GlobalState.SEARCHING:
+            return
+        for o in obs.sensed:
+            if self.news(o):
+                self.reported.add(o.id)
+                self._outbox.append(ObjectFound(self.id, obs.t, o))
+        if self.search.at_end(self.position):
+            self.search.state = SearchState.DONE
+            self.state = GlobalState.DECISION
+            self._outbox.append(self._search_done(obs.t))
+
+    def _search_done(self, t: int) -> SearchDone:
+        return SearchDone(self.id, t)
+
+    def _decide(self, obs: Observation) -> bool:
+        self._read_schedule()
+        if self.tasks and isinstance(self.tasks[0], Sweep):
+            self.sweep_task = self.tasks[0]
+        return super()._decide(obs)
+
+    def news(self, obj: ObjectInfo) -> bool:
+        return obj.id not in self.knowledge.objects and obj.id not in self.reported
+
+    def plan(self, t: int, position: Cell) -> Plan:
+        return _Planner(self, t, position, None).run()
+
+    def communicate(self, t: int, messages: Sequence) -> None:
+        self.comm.receive(t, messages)  # the runtime reacts to failures and recoveries
+
+    def body_messages(self) -> list:
+        out, self._outbox = self._outbox, []
+        return out
+
+
+# ----------------------------------------------------------------------------- the runtime
+
+
+def _digest(text: str) -> str:
+    return hashlib.blake2b(text.encode(), digest_size=8).hexdigest()
+
+
+@dataclass
+class RealtimeAgent:
+    """One robot's runtime without a barrier (see the module docstring)."""
+
+    agent: RtScheduleAgent
+    team: tuple[int, ...]
+    speaker: Speaker = field(init=False)
+    batches: Batches = field(init=False)
+    max_lag: float = 0.0  # the most a batch was processed after its stamp (steps)
+    sent: list[int] = field(default_factory=list)  # the stamps of the protocol messages it sent
+    digests: dict[int, Digest] = field(default_factory=dict)  # stamp -> digest (coordinations)
+    processed: set[int] = field(default_factory=set)  # stamps of every batch taken
+    goal: Goal | None = None  # the goal running on its base
+    goal_id: int = 0
+    label: str = SEARCHING_STATE  # the state label its base last got
+    _sweep: tuple[Sequence[Cell], int] | None = None  # running goal = that sweep from that index
+    _asked: bool = False
+    _decided: float = -1.0  # time of the last decision
+    _acted: int = -1  # step of the last act
+    _wakes: set[float] = field(default_factory=set)
+    _dues: set[float] = field(default_factory=set)  # times a decision is due at
+    _carry_started: int = -1  # object whose carry the base has begun
+    _blocked: int = -1  # object whose group lost a member: no CARRY for it until the comm knows
+    _keep: int = 0  # own schedule entries done or under way when a failure was learnt
+    _status_due: bool = False  # a failure was learnt: its status goes out at the next decision
+    _commit_at: float | None = None  # a time to commit once the decision asked for is taken
+    _event: int | None = None  # the comm's next event after the last batch (cached)
+    _event_for: int = -2
+    _sign: tuple = ()
+    _view: str = ""
+    _out: list[Output] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.speaker = Speaker(self.agent.id)
+        self.batches = Batches(self.agent.id, self.team, self.speaker)
+        self._view = self._schedule_view() or ""
+
+    @property
+    def id(self) -> int:
+        return self.agent.id
+
+    @property
+    def comm(self):
+        return self.agent.comm
+
+    # ------------------------------------------------------------------ callbacks
+
+    def start(self, now: float) -> list[Output]:
+        self._decide_at(now, now)
+        return self._flush(now)
+
+    def on_clock(self, now: float) -> list[Output]:
+        """A timer fired (``WakeAt``): decisions due, then commit the time passed."""
+        self._wakes = {w for w in self._wakes if w > now + EPS}
+        due = [d for d in self._dues if d <= now + EPS]
+        if due:
+            self._dues.difference_update(due)
+            self._decide_at(now, now)
+        self._commit(now)
+        return self._flush(now)
+
+    def on_message(self, payload: Envelope | Mark | Need | Lost, now: float) -> list[Output]:
+        """A peer's message (or the world's failure notice), as it arrives."""
+        self._commit(now)
+        if isinstance(payload, Envelope):
+            if self.batches.accept(payload):
+                self._marks(self.speaker.want(payload.stamp), now)
+        elif isinstance(payload, Mark):
+            self.batches.accept_mark(payload)
+        elif isinstance(payload, Need):
+            self._marks(self.speaker.want(payload.stamp), now)
+        elif isinstance(payload, Lost):
+            self.batches.accept_lost(payload)
+            self._marks(self.speaker.want(payload.t), now)
+        return self._flush(now)
+
+    def on_result(self, res: GoalResult, now: float) -> list[Output]:
+        if res.goal != self.goal_id:
+            return self._flush(now)  # an older goal's (preempted) result
+        if res.outcome == REACHED:
+            if self._sweep is not None and isinstance(self.goal, Follow):
+                self.agent.search.index = self._sweep[1] + len(self.goal.path) - 1
+            self.goal, self._sweep = None, None
+            self._decide_at(res.time, now)
+        elif res.outcome in (ABORTED, REFUSED):
+            self.goal, self._sweep, self._carry_started = None, None, -1
+            if res.code == "MEMBER_FAILED" and self.agent.current is not None:
+                self._blocked = self.agent.current.object  # until the comm hears of the failure
+            elif res.code == "START":  # planned from a stale feedback: look again, decide again
+                self._decided = -1.0
+                self._decide_at(now, now)
+            elif res.outcome == REFUSED:
+                self.agent.warnings.append(f"goal refused at {res.time}: {res.reason}")
+        return self._flush(now)
+
+    def on_detection(self, det: Detection, now: float) -> list[Output]:
+        a = self.agent
+        if a.state is GlobalState.SEARCHING and any(a.news(o) for o in det.objects):
+            self._decide_at(det.time, now)
+        return self._flush(now)
+
+    def on_carry(self, ev: CarryStarted, now: float) -> list[Output]:
+        if self.id in ev.group:
+            self._carry_started = ev.object
+        return self._flush(now)
+
+    def on_feedback(self, fb: Feedback, now: float) -> list[Output]:
+        self._asked = False
+        if fb.time > now + EPS:  # mid-move: decide when the move ends
+            self._decide_at(fb.time, now)
+        else:
+            self._decide(fb, now)
+        if self._commit_at is not None and not self._asked:
+            t, self._commit_at = self._commit_at, None
+            self._commit(t)
+        return self._flush(now)
+
+    # ------------------------------------------------------------------ decisions
+
+    def _decide_at(self, t: float, now: float) -> None:
+        """A decision is due at time t (asked for now if t has come)."""
+        if t > now + EPS:
+            self._dues.add(t)
+            self._wake(t)
+            return
+        if not self._asked:
+            self._asked = True
+            self._out.append(AskFeedback(now))
+
+    def _decide(self, fb: Feedback, now: float) -> None:
+        if abs(fb.time - self._decided) < EPS:
+            return  # one decision per moment
+        self._decided = fb.time
+        a = self.agent
+        s = math.ceil(fb.time - EPS)
+        self._sync(fb, s)
+        if self._status_due:
+            self._status(fb, s)
+        plan = a.plan(s, fb.cell)
+        searching = a.state is GlobalState.SEARCHING
+        if plan.settled and not (searching and any(a.news(o) for o in fb.sensed)):
+            self._follow_plan(plan[0], fb)
+            return
+        s = max(s, self._acted + 1)
+        self._acted = s
+        action = a.act(Observation(self.id, s, fb.cell, fb.sensed))
+        for m in a.body_messages():
+            self._send(m, fb.time)
+        self._follow_action(action, fb)
+        self._decide_at(s + 1, now)
+
+    def _sync(self, fb: Feedback, s: int) -> None:
+        a = self.agent
+        a.t, a.position = s, fb.cell
+        if self._sweep is not None and fb.goal == self.goal_id and fb.index >= 0:
+            path, base = self._sweep
+            if a.search.path is path:
+                a.search.index = base + fb.index
+
+    def _follow_plan(self, seg: Segment, fb: Feedback) -> None:
+        a = self.agent
+        if seg.kind == "sweep":
+            path = tuple(seg.path[seg.index :])
+            self._goal(Follow(path, seg.state), fb, sweep=(seg.path, seg.index))
+        elif seg.kind == "walk":
+            assert seg.target is not None
+            self._goal(Follow(tuple(route([fb.cell, seg.target])), seg.state), fb)
+        elif seg.kind == "wait":
+            self._goal(Stand(seg.state), fb)
+        else:
+            assert a.current is not None and a.current.object == seg.object
+            self._carry(a.current, seg.state, fb)
+
+    def _follow_action(self, action: Action, fb: Feedback) -> None:
+        a = self.agent
+        if action.kind is ActionKind.MOVE:
+            nxt = apply(fb.cell, action.direction)
+            g = self.goal
+            if (
+                isinstance(g, Follow)
+                and fb.goal == self.goal_id
+                and 0 <= fb.index < len(g.path) - 1
+                and g.path[fb.index + 1] == nxt
+                and _searching(g.state) == _searching(action.state)
+            ):
+                return  # the running goal makes this very move
+            self._goal(Follow((fb.cell, nxt), action.state), fb)
+        elif action.kind is ActionKind.CARRY:
+            assert a.current is not None and a.current.object == action.object
+            self._carry(a.current, action.state, fb)
+        else:
+            g = self.goal
+            if isinstance(g, Follow) and can_move(action.t, a.period):
+                self._goal(Stand(action.state), fb, force=True)  # it would move: stop it
+            else:
+                self._goal(Stand(action.state), fb)
+
+    def _carry(self, task: Assignment, state: str, fb: Feedback) -> None:
+        if task.object == self._blocked:
+            self._goal(Stand(state), fb)  # its group has lost a member: wait for the comm
+            return
+        self._goal(Carry(task.object, tuple(task.agents), state), fb)
+
+    def _goal(
+        self, goal: Goal, fb: Feedback, sweep: tuple[Sequence[Cell], int] | None = None, force: bool = False
+    ) -> None:
+        """Send ``goal`` unless the running one already does it."""
+        g = self.goal
+        running = g is not None and fb.goal == self.goal_id
+        if not force and running:
+            if isinstance(goal, Follow) and isinstance(g, Follow) and fb.index >= 0:
+                if g.path[fb.index :] == goal.path and _searching(g.state) == _searching(goal.state):
+                    return
+            elif isinstance(goal, Carry) and isinstance(g, Carry):
+                if (g.object, g.group) == (goal.object, goal.group):
+                    return
+            elif isinstance(goal, Stand) and isinstance(g, Stand) and g.state == goal.state:
+                return
+        if isinstance(goal, Stand) and not running and _finish(goal.state) == _finish(self.label):
+            return  # it stands already, and nothing about it changes
+        self.goal_id += 1
+        self.goal = goal
+        self._sweep = sweep
+        self.label = goal.state
+        self._carry_started = -1  # a new goal: no lift of it yet (on_carry says when)
+        self._out.append(SendGoal(self.goal_id, goal, fb.time))
+
+    # ------------------------------------------------------------------ failures
+
+    def _freeze(self, now: float) -> None:
+        """The comm has learnt of a failure: stop what is not under way (a carry the group has
+        begun, a sweep go on), read no more of the schedule until the recovery, and say so (the
+        status, at the next decision)."""
+        a = self.agent
+        k = self.comm.knowledge
+        a.tasks.clear()
+        a._seen_schedule = len(k.schedule)
+        going = isinstance(self.goal, Carry) and self._carry_started == self.goal.object
+        if a.current is not None and not going:
+            a.current = None
+            a._taken -= 1  # taken up, not begun: it goes back into the pool
+            if a.state is not GlobalState.SEARCHING:
+                a.state = GlobalState.DECISION
+            if isinstance(self.goal, Carry):  # let go now: the lift must not begin without it
+                self.goal_id += 1
+                self.goal, self.label = Stand(GlobalState.DECISION.value), GlobalState.DECISION.value
+                self._out.append(SendGoal(self.goal_id, self.goal, now))
+        elif a.current is None and a.state in (GlobalState.RETURNING, GlobalState.FINISH):
+            a.state = GlobalState.DECISION
+        self._blocked = -1
+        self._keep = a._taken
+        self._status_due = True
+        self._decide_at(math.floor(now + EPS) + 1, now)
+
+    def _status(self, fb: Feedback, s: int) -> None:
+        """Where and when it is free of what it keeps doing, and what of the schedule it keeps."""
+        self._status_due = False
+        a, comm = self.agent, self.comm
+        free_at, where = s + 1, fb.cell
+        if a.current is not None:
+            o = comm.knowledge.objects[a.current.object]
+            free_at, where = max(a.current.finish, s + 1), o.destination
+        elif a.state is GlobalState.SEARCHING:
+            sw = a.sweep_task or comm._sweeps_of(self.id)[0]
+            free_at, where = max(sw.finish, s + 1), sw.path[-1]
+        stamp = stamp_of(fb.time, self.speaker.committed)
+        self._send(RtStatus(self.id, stamp, free_at, where, failure=len(comm.lost), keep=self._keep), fb.time)
+
+    def _resync(self) -> None:
+        """A recovery completed: its own kept entries are what it has done or is doing; the
+        entries after them are new."""
+        a, comm = self.agent, self.comm
+        sched = comm.knowledge.schedule
+        kept = comm.kept_len if comm.kept_len is not None else len(sched)
+        a.tasks.clear()
+        a._seen_schedule = kept
+        a._taken = sum(1 for e in sched[:kept] if self.id in e.agents)
+        if a.current is not None and a.current not in sched[:kept]:
+            a.current = None
+            if a.state is not GlobalState.SEARCHING:
+                a.state = GlobalState.DECISION
+
+    # ------------------------------------------------------------------ the comm side
+
+    def _send(self, message, time: float) -> None:
+        env = self.speaker.send(message, time)
+        self.sent.append(env.stamp)
+        self.batches.accept(env)
+        self._out.append(Publish(env))
+        self._wake(float(env.stamp))  # to commit its stamp: its batch waits for that
+
+    def _marks(self, marks: list[Mark], now: float) -> None:
+        for m in marks:
+            self._out.append(Publish(m))
+        nxt = self.speaker.next_wanted()
+        if nxt is not None and nxt > self.speaker.committed:
+            self._wake(max(float(nxt), now))
+
+    def _commit(self, now: float) -> None:
+        """Every event of time ≤ now is handled — unless a decision asked for is still to come
+        (then once it is taken)."""
+        if self._asked:
+            self._commit_at = now if self._commit_at is None else max(self._commit_at, now)
+            return
+        self._marks(self.speaker.commit(math.floor(now + EPS)), now)
+
+    def _wake(self, t: float) -> None:
+        if t not in self._wakes:
+            self._wakes.add(t)
+            self._out.append(WakeAt(t))
+
+    def _next_batch(self) -> int | None:
+        n = self.batches.next_stamp()
+        if self._event_for != self.batches.done:  # the comm changes only when it takes a batch
+            self._event_for = self.batches.done
+            self._event = self.comm.next_event(self.batches.done + 1)
+        e = self._event
+        cands = [x for x in (n, e) if x is not None]
+        return min(cands) if cands else None
+
+    def _pump(self, now: float) -> None:
+        """Take every complete batch, in stamp order; ask for what the next one lacks."""
+        while True:
+            t = self._next_batch()
+            if t is None:
+                return
+            if not self.batches.complete(t):
+                if self.speaker.committed < t:
+                    self._wake(float(t))  # its own clock first (a Need for later may be moot)
+                    return
+                need = self.batches.ask(t)
+                if need is not None:
+                    self._out.append(Publish(need))
+                return
+            self._take(t, now)
+
+    def _take(self, t: int, now: float) -> None:
+        msgs = self.batches.take(t)
+        self.processed.add(t)
+        self.max_lag = max(self.max_lag, now - t)
+        self.agent.communicate(t, msgs)
+        for m in self.comm.drain():
+            self._send(m, now)
+        view = self._schedule_view()
+        if view is not None:
+            self._view = view
+            self.digests[t] = Digest(
+                self.id, t, self.comm.knowledge.coordinations, _digest(repr(msgs)), _digest(view)
+            )
+            self._out.append(self.digests[t])
+        comm = self.comm
+        if comm.reset:
+            comm.reset = False
+            self._freeze(now)
+        if comm.recovered:
+            comm.recovered = False
+            self._resync()
+        self._decide_at(math.floor(now + EPS) + 1, now)
+
+    def _schedule_view(self) -> str | None:
+        """The shared view (schedule and pool) if it may have changed since the last one, else
+        None: it changes only with a coordination, a find, an award or a failure."""
+        k, comm = self.comm.knowledge, self.comm
+        sign = (len(k.schedule), k.coordinations, len(k.unscheduled), len(comm.lost), comm.kept_len)
+        if sign == self._sign:
+            return None
+        self._sign = sign
+        view = repr((k.schedule, sorted(k.unscheduled)))
+        return None if view == self._view else view
+
+    def _flush(self, now: float) -> list[Output]:
+        """What to do now: first every batch that became complete (its reactions included) —
+        not while a decision asked for is still to come: the body acts before the comm moves on."""
+        if not self._asked:
+            self._pump(now)
+        out, self._out = self._out, []
+        return out
+
+
+def _searching(state: str) -> bool:
+    return state == SEARCHING_STATE
+
+
+def _finish(state: str) -> bool:
+    return state == FINISH_STATE

@@ -1,0 +1,84 @@
+"""A discrete-event network for the in-process realtime run: a heap of timed events and a
+broadcast whose copies each take ``latency`` steps plus a seeded draw from 0..``jitter`` more,
+drawn per (message, receiver) — so copies of one message arrive at different times and messages
+overtake each other.
+
+Events at one time run in phase order: failures (``KILL``), the world's events (``WORLD``: goal
+results, detections), agents' timers (``WAKE``: decisions, commitments), then deliveries
+(``DELIVER``); within a phase, in the order they were scheduled. Nothing here knows what an
+event means: :mod:`ost_ros.realtime.run` dispatches them.
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+KILL, WORLD, WAKE, DELIVER = 0, 1, 2, 3
+
+
+@dataclass(frozen=True)
+class Latency:
+    """``steps`` + U{0..``jitter``} per copy of a message (in steps)."""
+
+    steps: float = 0
+    jitter: float = 0
+
+    def __post_init__(self) -> None:
+        if self.steps < 0 or self.jitter < 0:
+            raise ValueError(f"latency {self.steps}:{self.jitter}: both must be ≥ 0")
+
+
+@dataclass
+class EventQueue:
+    """Timed events, popped in (time, phase, order) order."""
+
+    _heap: list[tuple[float, int, int, Any]] = field(default_factory=list)
+    _count: int = 0
+
+    def push(self, time: float, phase: int, event: Any) -> None:
+        self._count += 1
+        heapq.heappush(self._heap, (time, phase, self._count, event))
+
+    def pop(self) -> tuple[float, int, Any]:
+        time, phase, _, event = heapq.heappop(self._heap)
+        return time, phase, event
+
+    def peek(self) -> float | None:
+        return self._heap[0][0] if self._heap else None
+
+    def __len__(self) -> int:
+        return len(self._heap)
+
+
+@dataclass
+class Network:
+    """Broadcasts over seeded latencies into an :class:`EventQueue`."""
+
+    queue: EventQueue
+    latency: Latency = Latency()
+    seed: int = 0
+    sent: int = 0  # copies scheduled
+    _rng: np.random.Generator = field(init=False)
+
+    def __post_init__(self) -> None:
+        self._rng = np.random.default_rng(self.seed)
+
+    def delay(self) -> float:
+        """One copy's transit time (integer draws when the latency is integral)."""
+        j = self.latency.jitter
+        if j <= 0:
+            return self.latency.steps
+        if float(j).is_integer():
+            return self.latency.steps + int(self._rng.integers(0, int(j) + 1))
+        return self.latency.steps + float(self._rng.uniform(0, j))
+
+    def send(self, now: float, payload: Any, receivers: Iterable[int]) -> None:
+        """One copy of ``payload`` to each receiver, each with its own delay."""
+        for r in receivers:
+            self.sent += 1
+            self.queue.push(now + self.delay(), DELIVER, (r, payload))

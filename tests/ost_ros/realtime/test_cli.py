@@ -1,0 +1,69 @@
+"""``ost sim --latency`` as a user runs it: the realtime fields in JSON only, the lockstep JSON
+untouched at latency 0, failures, noise and stalls as options, bad values in one line (exit 2)."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+OST = [sys.executable, "-m", "ost_ros"]
+
+
+def ost(*args):
+    return subprocess.run(OST + [str(a) for a in args], capture_output=True, text=True, timeout=120)
+
+
+@pytest.fixture(scope="module")
+def scenario(tmp_path_factory):
+    path = tmp_path_factory.mktemp("rt") / "s.yaml"
+    args = ("--agents", 4, "--objects", 6, "--seed", 1, "--width", 40, "--height", 20, "--nmax", 3)
+    assert ost("generate", *args, "-o", path).returncode == 0
+    return path
+
+
+def test_latency_zero_adds_the_realtime_fields_to_ost_sims_json(scenario):
+    plain = ost("sim", scenario, "--json")
+    rt = ost("sim", scenario, "--latency", 0, "--json")
+    assert plain.returncode == rt.returncode == 0, rt.stderr
+    a, b = json.loads(plain.stdout), json.loads(rt.stdout)
+    assert "mode" not in a  # the lockstep JSON keeps its bytes
+    extra = {k: b.pop(k) for k in list(b) if k not in a}
+    assert a == b
+    assert extra["mode"] == "realtime" and extra["latency"] == [0, 0] and extra["disagreements"] == 0
+    assert set(extra["lag"]) == {"0", "1", "2", "3"} and all(v == 0 for v in extra["lag"].values())
+
+
+def test_a_run_with_latency_noise_stalls_and_a_failure(scenario):
+    r = ost(
+        "sim", scenario, "--latency", "8:12", "--latency-seed", 4, "--speed-jitter", 0.3,
+        "--stall", "1:40:30", "--fail", "2:60", "--protocol", "ncp", "--json",
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert d["completed"] and d["disagreements"] == 0 and d["latency"] == [8, 12]
+    assert d["failures"] == [{"agent": 2, "step": 60}] and d["stalls"] == [[1, 40.0, 30.0]]
+    assert max(d["lag"].values()) >= 8
+    text = ost("sim", scenario, "--latency", "8:12", "--protocol", "auction")
+    assert text.returncode == 0 and "disagreements 0 in" in text.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("--latency", "x"), "expected L or L:J"),
+        (("--latency", "-1"), "must be finite and ≥ 0"),
+        (("--latency", "2:-1"), "must be finite and ≥ 0"),
+        (("--stall", "1:2:3"), "--stall needs --latency"),
+        (("--latency", 1, "--stall", "1:2"), "expected AGENT:STEP:STEPS"),
+        (("--latency", 1, "--stall", "9:2:3"), "no agent 9"),
+        (("--latency", 1, "--speed-jitter", "-0.5"), "must be ≥ 0"),
+        (("--latency", 1, "--protocol", "hcp"), "hcp does not run without a barrier"),
+        (("--latency", 1, "--planner", "improved"), "--planner improved does not run without a barrier"),
+        (("--latency", 1, "--plot", "x.png"), "--plot is for the lockstep engines"),
+        (("--latency", 1, "--fail", "9:3"), "no such agent"),
+    ],
+)
+def test_bad_values_are_one_line_errors(scenario, args, message):
+    r = ost("sim", scenario, *args)
+    assert r.returncode == 2 and message in r.stderr and len(r.stderr.strip().splitlines()) == 1

@@ -1,0 +1,239 @@
+"""Runs without a barrier, in process: the promises as properties over random small scenarios,
+latencies with jitter up to 50 steps, unequal speeds, speed noise, stalls and failures — every
+object delivered by exactly its n_i robots (or declared impossible when too few survive), every
+coordination's digest equal on every robot, no deadlock, an end within the bound — and at
+latency 0 the step engine's run, byte for byte."""
+
+import dataclasses
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ost_ros.coordination import CoordinationPolicy
+from ost_ros.engines import simulate, step_limit
+from ost_ros.model import Grid, ObjectSpec, manhattan
+from ost_ros.negotiation.slots import NegotiationSettings
+from ost_ros.protocols import ProtocolError
+from ost_ros.protocols.ncp import SPEC as NCP
+from ost_ros.realtime import run as rt
+from ost_ros.realtime.net import Latency, Network
+from ost_ros.realtime.run import run_realtime
+from ost_ros.scenario import build_scenario, generate_objects
+from tests.strategies import policies, scenarios
+
+
+@st.composite
+def teams(draw, agents=(1, 6), objects=(0, 7)):
+    """A small scenario, sometimes with slower robots, and a protocol that runs without a barrier."""
+    s = draw(scenarios(agents=agents, objects=objects))
+    if draw(st.booleans()):
+        agents = [dataclasses.replace(a, period=draw(st.sampled_from([1, 1, 2, 3]))) for a in s.agents]
+        s = build_scenario(s.grid, s.objects, partition=s.partition, agents=agents, nmax=s.nmax)
+    protocol = draw(st.sampled_from(["ccp", "ccp-coordinator", "ncp", "auction"]))
+    policy = draw(policies)
+    if protocol == "ccp-coordinator":
+        protocol, policy = "ccp", dataclasses.replace(policy, organisation="coordinator")
+    if protocol == "auction":
+        policy = CoordinationPolicy()
+    return s, protocol, policy
+
+
+@st.composite
+def failures(draw, s, horizon=60):
+    """Some robots failing, sometimes so many that objects cannot be moved any more."""
+    if s.n_agents < 2 or not draw(st.booleans()):
+        return {}
+    ids = [a.id for a in s.agents]
+    dead = draw(st.permutations(ids))[: draw(st.integers(1, len(ids) - 1))]
+    return {a: draw(st.integers(0, horizon)) for a in dead}
+
+
+def check_run(s, r, report, dead):
+    survivors = s.n_agents - len(dead)
+    assert report.disagreements == 0 and r.agreement
+    assert not r.rejections and not r.warnings
+    for o, spec in zip(r.objects, s.objects):
+        if spec.required <= survivors:
+            assert o.delivered is not None
+        if o.delivered is not None:  # by its group (that may have failed since), along its route
+            assert len(o.agents) == len(set(o.agents)) == spec.required
+            assert o.delivered - o.start >= manhattan(spec.location, spec.destination)
+    assert all(a.idle >= 0 for a in r.agents)  # nobody in two places at once
+    assert r.completed == all(o.delivered is not None for o in r.objects)
+    assert r.completed or "cannot be delivered" in (r.error or "")
+
+
+@settings(max_examples=300, deadline=None)
+@given(data=st.data())
+def test_at_latency_zero_the_run_is_the_step_engines(data):
+    s, protocol, policy = data.draw(teams())
+    dead = data.draw(failures(s, horizon=data.draw(st.sampled_from([8, 60]))))
+    if dead and data.draw(st.booleans()):  # near the end, when robots are finishing
+        end = simulate(s, protocol, policy, engine="step").makespan or 0
+        dead = {a: max(0, end - data.draw(st.integers(0, 6))) for a in dead}
+    ref = simulate(s, protocol, policy, engine="step", failures=dead)
+    r, report = run_realtime(s, protocol, policy, failures=dead)
+    assert r.to_dict() == ref.to_dict()
+    assert report.disagreements == 0 and all(lag == 0 for lag in report.lag.values())
+
+
+@settings(max_examples=1000, deadline=None)
+@given(data=st.data())
+def test_without_a_barrier_every_object_is_carried_by_its_group_and_all_agree(data):
+    s, protocol, policy = data.draw(teams())
+    dead = data.draw(failures(s, horizon=200))
+    latency = Latency(data.draw(st.integers(0, 50)), data.draw(st.integers(0, 50)))
+    stalls = data.draw(
+        st.lists(
+            st.tuples(st.sampled_from([a.id for a in s.agents]), st.integers(0, 150), st.integers(1, 80)),
+            max_size=2,
+        )
+    )
+    r, report = run_realtime(
+        s,
+        protocol,
+        policy,
+        latency=latency,
+        seed=data.draw(st.integers(0, 10**6)),
+        speed_jitter=data.draw(st.sampled_from([0.0, 0.0, 0.3, 1.0])),
+        stalls=stalls,
+        failures=dead,
+    )
+    check_run(s, r, report, dead)
+    # the end within a bound: the lockstep bound, slowed by the noise, plus the network's delays
+    slack = (latency.steps + latency.jitter + 2) * 4 * (len(s.objects) + s.n_agents + 4)
+    assert r.steps <= 2 * (2 * step_limit(s, len(dead)) + slack + sum(st[2] for st in stalls))
+
+
+@settings(max_examples=40, deadline=None)
+@given(teams(agents=(2, 6), objects=(1, 7)), st.integers(0, 10**6))
+def test_more_latency_and_reordering_never_break_agreement(team, seed):
+    s, protocol, policy = team
+    for latency in (Latency(1, 0), Latency(3, 9), Latency(20, 40), Latency(50, 50)):
+        r, report = run_realtime(s, protocol, policy, latency=latency, seed=seed)
+        check_run(s, r, report, {})
+
+
+def test_the_same_seed_gives_the_same_run():
+    s = build_scenario(Grid(30, 12), generate_objects(8, 3, Grid(30, 12), 3), n_agents=4, nmax=3)
+    kw = dict(latency=Latency(7, 13), speed_jitter=0.4, stalls=[(1, 30.0, 20.0)], failures={2: 90})
+    runs = [run_realtime(s, "ccp", CoordinationPolicy(ci=2), seed=seed, **kw) for seed in (5, 5, 6)]
+    a, b, c = (r.to_dict() | rep.to_dict() for r, rep in runs)
+    assert a == b and a != c
+
+
+def test_latency_costs_little_when_coordination_runs_beside_the_motion():
+    # Coordination happens while the robots still search: a late schedule is read in time.
+    s = build_scenario(Grid(60, 20), generate_objects(10, 1, Grid(60, 20), 3), n_agents=6, nmax=3)
+    base, _ = run_realtime(s, "ccp", CoordinationPolicy(ci=1))
+    late, report = run_realtime(s, "ccp", CoordinationPolicy(ci=1), latency=Latency(5, 5), seed=1)
+    assert base.completed and late.completed and report.disagreements == 0
+    assert late.makespan >= base.makespan and max(report.lag.values()) >= 5
+
+
+def test_a_carrier_failing_mid_carry_leaves_the_load_for_the_survivors():
+    s = build_scenario(Grid(12, 3), [ObjectSpec(0, (1, 1), (11, 2), 2)], n_agents=3, nmax=2)
+    kw = dict(latency=Latency(4, 6), seed=3)
+    free, _ = run_realtime(s, "ccp", CoordinationPolicy(ci=1), **kw)
+    (o,) = free.objects
+    dead = o.agents[0]  # a carrier, failing three cells into the carry
+    r, report = run_realtime(s, "ccp", CoordinationPolicy(ci=1), failures={dead: o.start + 3}, **kw)
+    check_run(s, r, report, {dead})
+    assert dead not in r.objects[0].agents and r.objects[0].start == o.start  # lifted once, before
+    assert r.failures == [{"agent": dead, "step": o.start + 3}] and r.objects[0].delivered > o.delivered
+
+
+def test_a_silent_negotiator_is_timed_out_in_stamps():
+    s = build_scenario(Grid(30, 12), generate_objects(8, 3, Grid(30, 12), 2), n_agents=4, nmax=2)
+
+    def mute(agents):
+        NCP.silence(agents[2].agent, 0)
+        for ra in agents:
+            ra.comm.round_deadline = 40
+
+    r, report = run_realtime(
+        s,
+        "ncp",
+        CoordinationPolicy(ci=3),
+        NegotiationSettings(timeout_rounds=2),
+        latency=Latency(3, 4),
+        seed=2,
+        prepare=mute,
+    )
+    assert r.completed and report.disagreements == 0
+    assert all(2 not in a.agents for a in r.schedule)
+    assert any("agent(s) 2 silent for 2 rounds" in w for w in r.warnings)
+
+
+def test_a_disagreement_is_counted():
+    # Fault injection: robot 1's comm module never hears of object 0 — its schedule, and so its
+    # digests, part from everyone else's.
+    s = build_scenario(Grid(30, 12), generate_objects(8, 4, Grid(30, 12), 2), n_agents=4, nmax=2)
+
+    def deaf(agents):
+        comm = agents[1].comm
+        receive = comm.receive
+        comm.receive = lambda t, msgs: receive(
+            t, [m for m in msgs if getattr(m, "object", None) != s.objects[0]]
+        )
+
+    _, report = run_realtime(s, "ccp", CoordinationPolicy(ci=1), prepare=deaf, max_steps=3000)
+    assert report.disagreements > 0
+
+
+def test_a_network_that_loses_messages_ends_in_a_reported_deadlock(monkeypatch):
+    s = build_scenario(Grid(30, 12), generate_objects(6, 2, Grid(30, 12), 2), n_agents=4, nmax=2)
+    send = Network.send
+    monkeypatch.setattr(
+        Network, "send", lambda self, now, p, to: send(self, now, p, [r for r in to if r != 3])
+    )
+    r, _ = run_realtime(s, "ccp", CoordinationPolicy(ci=1), latency=Latency(2, 0))
+    assert not r.completed and r.error is not None and "deadlock" in r.error
+
+
+@pytest.mark.parametrize(
+    ("protocol", "settings", "why"),
+    [("hcp", None, "hcp does not run without a barrier"), ("ccp", "improved", "--planner improved")],
+)
+def test_protocols_that_cannot_agree_without_a_barrier_are_refused(protocol, settings, why):
+    from ost_ros.protocols.ccp import CcpSettings
+
+    s = build_scenario(Grid(12, 3), [ObjectSpec(0, (1, 1), (11, 2), 1)], n_agents=2, nmax=1)
+    with pytest.raises(ProtocolError, match=why):
+        run_realtime(s, protocol, settings=CcpSettings(settings) if settings else None)
+    assert rt.REALTIME == ("ccp", "ncp", "auction")
+
+
+def test_a_robot_that_is_never_ahead_of_its_sweep_is_found_where_it_was():
+    # remainder of a sweep past a visited cell: the last visit not beyond the prediction
+    from ost_ros.protocols.shared.recovery import Sweep
+    from ost_ros.realtime.comms import _remainder
+
+    path = ((0, 0), (1, 0), (2, 0), (1, 0), (1, 1))
+    sw = Sweep(0, path, 0, 4)
+    assert _remainder(sw, 4, 1, (1, 0)) == path[3:]  # predicted at index 4: the second visit
+    assert _remainder(sw, 2, 1, (1, 0)) == path[1:]  # predicted at index 2: the first
+    assert _remainder(sw, 2, 1, (5, 5)) == path  # not on it: all of it
+
+
+def test_a_goal_planned_from_a_stale_feedback_is_decided_again(monkeypatch):
+    # The base's answer comes two moves late (as over a slow link): the first goals start where
+    # the robot no longer is; the base refuses them (START) and the robot decides again.
+    from ost_ros.realtime.world import RealtimeWorld
+
+    s = build_scenario(Grid(20, 6), generate_objects(4, 5, Grid(20, 6), 2), n_agents=2, nmax=2)
+    feedback = RealtimeWorld.feedback
+    stale = {"left": 3}
+
+    def late(self, agent, at):
+        fb = feedback(self, agent, at)
+        if stale["left"] and fb.index > 1:  # where it was two cells ago
+            stale["left"] -= 1
+            return dataclasses.replace(fb, cell=self.bots[agent].route.cells[fb.index - 2])
+        return fb
+
+    monkeypatch.setattr(RealtimeWorld, "feedback", late)
+    r, report = run_realtime(s, "ccp", CoordinationPolicy(ci=1))
+    assert stale["left"] == 0 and r.completed and report.disagreements == 0
+    assert len(r.rejections) == 3 and all("path starts at" in x for x in r.rejections)

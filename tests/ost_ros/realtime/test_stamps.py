@@ -1,0 +1,134 @@
+"""The agreement layer by hand: stamps never at or below a given watermark, a batch complete
+only once every live participant has covered it, one order whatever the arrival order, and a
+failure notice that every receiver applies from the same batch."""
+
+import itertools
+
+import pytest
+
+from ost_ros.realtime.messages import Envelope, Lost, Mark, Need
+from ost_ros.realtime.stamps import Batches, LateMessage, Speaker, stamp_of
+
+
+def test_stamps_follow_the_event_and_never_fall_at_or_below_a_commitment():
+    assert stamp_of(5.0, -1) == 5 and stamp_of(5.3, -1) == 6 and stamp_of(5.0, 5) == 6
+    sp = Speaker(0)
+    a = sp.send("a", 3.0)
+    assert (a.seq, a.stamp) == (1, 3)
+    assert sp.commit(7) == [Mark(0, 7, 1)]  # batch 3 is wanted (its own message): announced
+    b = sp.send("b", 4.0)  # an event of time 4 handled after committing 7 goes out stamped 8
+    assert (b.seq, b.stamp) == (2, 8) and sp.committed == 7
+    stamps = [sp.send(i, t).stamp for i, t in enumerate([8.0, 8.5, 2.0, 9.0])]
+    assert stamps == sorted(stamps) and min(stamps) > 7
+
+
+def test_a_watermark_is_announced_once_and_only_when_someone_waits():
+    sp = Speaker(1)
+    assert sp.commit(4) == []  # nobody waits: no heartbeat
+    assert sp.want(3) == [Mark(1, 4, 0)]  # committed already: answered at once
+    assert sp.want(2) == []  # covered by the announcement
+    assert sp.want(9) == [] and sp.next_wanted() == 9  # not yet: answered when committed
+    assert sp.commit(8) == []
+    assert sp.commit(9) == [Mark(1, 9, 0)]
+    assert sp.commit(12) == []
+
+
+def env(sender, seq, stamp, msg=None):
+    return Envelope(sender, seq, stamp, msg if msg is not None else f"{sender}.{seq}")
+
+
+def test_a_batch_waits_for_every_participant_and_every_message_up_to_its_watermark():
+    me = Speaker(0)
+    b = Batches(0, (0, 1, 2), me)
+    b.accept(env(1, 1, 5))
+    assert b.next_stamp() == 5 and not b.complete(5)
+    me.commit(5)
+    assert b.lacking(5) == [1, 2]  # 1's message stamped 5 only says "nothing more ≤ 4"
+    b.accept_mark(Mark(2, 6, 2))  # 2 has sent 2 messages, none of them arrived yet
+    b.accept_mark(Mark(1, 5, 1))
+    assert b.lacking(5) == [2]
+    b.accept(env(2, 2, 6))
+    assert b.lacking(5) == [2]  # its message 1 is still on the way
+    b.accept(env(2, 1, 5))
+    assert b.complete(5)
+    assert b.take(5) == ["1.1", "2.1"]  # by (sender, seq), whatever the arrival order
+    assert b.done == 5 and b.next_stamp() == 6
+    with pytest.raises(LateMessage):
+        b.accept(env(1, 2, 5))  # 1 announced 5: a message stamped 5 now breaks that
+
+
+def test_every_arrival_order_gives_the_same_batches():
+    msgs = [env(1, 1, 2), env(1, 2, 2), env(1, 3, 4), env(2, 1, 3), env(2, 2, 4)]
+    marks = [Mark(1, 4, 3), Mark(2, 4, 2)]
+    seen = set()
+    for order in itertools.permutations(msgs + marks):
+        me = Speaker(0)
+        me.commit(4)
+        b = Batches(0, (0, 1, 2), me)
+        out = []
+        for x in order:
+            if isinstance(x, Mark):
+                b.accept_mark(x)
+            else:
+                b.accept(x)
+            while (t := b.next_stamp()) is not None and b.complete(t):
+                out.append((t, tuple(b.take(t))))
+        seen.add(tuple(out))
+    assert seen == {((2, ("1.1", "1.2")), (3, ("2.1",)), (4, ("1.3", "2.2")))}
+
+
+def test_a_need_is_only_for_a_batch_without_messages():
+    me = Speaker(0)
+    b = Batches(0, (0, 1), me)
+    assert b.ask(7) == Need(0, 7) and b.ask(7) is None  # once
+    b.accept(env(1, 1, 9))
+    assert b.ask(9) is None  # its message reaches everyone: they announce on it
+
+
+def test_a_failure_notice_drops_the_robot_from_the_same_batch_everywhere():
+    notice = Lost(2, 6, seq=2, at=(0, 0))
+    orders = [
+        [env(2, 1, 4), env(2, 2, 6), notice],
+        [notice, env(2, 2, 6), env(2, 1, 4)],
+        [env(2, 2, 6), notice, env(2, 1, 4)],
+    ]
+    results = set()
+    for order in orders:
+        me = Speaker(0)
+        me.commit(8)
+        b = Batches(0, (0, 1, 2), me)
+        b.accept_mark(Mark(1, 8, 0))
+        for x in order:
+            b.accept_lost(x) if isinstance(x, Lost) else b.accept(x)
+        out = []
+        while (t := b.next_stamp()) is not None and b.complete(t):
+            out.append((t, tuple(b.take(t))))
+        results.add(tuple(out))
+        assert b.participants(6) == [0, 1] and b.participants(5) == [0, 1, 2]
+    # its message stamped 6 is at or after the notice: dropped; the notice comes last in batch 6
+    assert results == {((4, ("2.1",)), (6, (notice,)))}
+
+
+def test_a_batch_before_a_notice_waits_for_the_dead_robots_counted_messages():
+    me = Speaker(0)
+    me.commit(9)
+    b = Batches(0, (0, 1), me)
+    b.accept_lost(Lost(1, 8, seq=3, at=(0, 0)))
+    assert not b.complete(5)  # three of its messages count and none has arrived
+    for seq, stamp in ((1, 2), (2, 5), (3, 9)):
+        b.accept(env(1, seq, stamp))
+    assert [(t, b.take(t)) for t in (2, 5)] == [(2, ["1.1"]), (5, ["1.2"])]
+    assert b.next_stamp() == 8  # its message stamped 9 is past its notice: gone
+
+
+def test_a_later_batch_waits_for_a_dead_robots_message_still_on_the_way():
+    me = Speaker(0)
+    me.commit(9)
+    b = Batches(0, (0, 1, 2), me)
+    b.accept_mark(Mark(2, 9, 0))
+    b.accept_lost(Lost(1, 1, seq=1, at=(0, 0)))  # it sent one message before it failed
+    b.accept(env(2, 1, 4))
+    assert not b.complete(4)  # its message (stamped 0, say) may still come: batch 0 first
+    b.accept(env(1, 1, 0))
+    notice = b.failed[1]
+    assert [(t, b.take(t)) for t in (0, 1, 4)] == [(0, ["1.1"]), (1, [notice]), (4, ["2.1"])]
