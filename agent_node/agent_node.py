@@ -19,7 +19,6 @@ import signal
 import sys
 import time
 
-import yaml
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.publisher import Publisher
@@ -32,13 +31,12 @@ from ost_ros.lockstep.agent import AgentRuntime, ProtocolViolation
 from ost_ros.lockstep.messages import Acted, AgentReport, Ready, Resend, RunEnd, Sample, Tick
 from ost_ros.model import Scenario
 from ost_ros.node import transport as tp
-from ost_ros.node.params import ParameterError, declare_role
+from ost_ros.node.params import ParameterError, declare_role, param_from_args, realtime_from_args
 from ost_ros.node.run import run_node
 from ost_ros.node.signing import node_auth
 from ost_ros.runconfig import AGENT, ConfigError, RunConfig
 from ost_ros.scenario import ScenarioError, load_scenario, with_team
 from ost_ros.team import TeamInfo
-from ost_ros.yamlload import safe_load
 
 # Without the world for this long after the start, the agent gives up (it would wait forever).
 WORLD_LOST_S = 10.0
@@ -362,34 +360,10 @@ class AgentRunner:
 
 
 def agent_id_from_args(argv: list[str]) -> int | None:
-    """``agent_id`` as the ROS arguments set it (``-p``/``--param agent_id:=N`` or a
-    ``--params-file``; the last assignment wins, as in rcl), or None when unset or not an int.
-    The node still declares and checks the parameter itself; this only picks its name."""
-    value = None
-    ros, k = False, 0
-    while k < len(argv):
-        a = argv[k]
-        if a == "--ros-args":
-            ros = True
-        elif a == "--":
-            ros = False
-        elif ros and a in ("-p", "--param") and k + 1 < len(argv):
-            name, _, v = argv[k + 1].partition(":=")
-            if name == "agent_id":
-                value = v
-            k += 1
-        elif ros and a == "--params-file" and k + 1 < len(argv):
-            try:
-                with open(argv[k + 1]) as f:
-                    doc = safe_load(f)
-                for section in (doc or {}).values():
-                    params = (section or {}).get("ros__parameters", {}) if isinstance(section, dict) else {}
-                    if isinstance(params, dict) and "agent_id" in params:
-                        value = params["agent_id"]
-            except (OSError, yaml.YAMLError, AttributeError):
-                pass  # the node reports a bad params file itself
-            k += 1
-        k += 1
+    """``agent_id`` as the ROS arguments set it (:func:`ost_ros.node.params.param_from_args`), or
+    None when unset or not a non-negative int. The node still declares and checks the parameter
+    itself; this only picks its name."""
+    value = param_from_args(argv, "agent_id")
     try:
         return int(value) if value is not None and int(value) >= 0 else None
     except (TypeError, ValueError):
@@ -400,8 +374,19 @@ def main(args=None) -> int:
     # The node's name is agent_<id>; the id is a parameter, read here from the ROS arguments.
     # (A throw-away bootstrap node did this before: destroying it right after its creation now
     # and then spun forever inside rcl, hanging the process at start.)
-    agent_id = agent_id_from_args(sys.argv if args is None else args)
+    argv = sys.argv if args is None else args
+    agent_id = agent_id_from_args(argv)
     name = tp.agent_node_name(agent_id) if agent_id is not None else "agent"
+    if realtime_from_args(argv):
+        from agent_node.realtime import RealtimeAgentNode
+
+        return run_node(
+            "agent_node",
+            lambda: RealtimeAgentNode(name),
+            args,
+            done=lambda node: node.done,
+            code=lambda node: node.exit_code,
+        )
     return run_node(
         "agent_node",
         lambda: AgentNode(name),

@@ -51,7 +51,7 @@ WORLD = -1  # the world's signer id
 TEAM_FILE = "team.yaml"
 WINDOW = 1 << 16  # counters of each signer remembered by a receiver (a bitmap of this many bits)
 # Interfaces only the world sends; every other one names its agent (see claimed_signer).
-WORLD_TYPES = frozenset({"Tick", "RunEnd", "RunInfo"})
+WORLD_TYPES = frozenset({"Tick", "RunEnd", "RunInfo", "Detection", "Lost"})  # (realtime: the last two)
 DOMAIN = b"ost-auth-1\0"  # what the signed bytes start with: no other use of a key can collide
 
 # Why a message was dropped: the three counts of a run's transport stats.

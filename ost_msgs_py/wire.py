@@ -42,16 +42,22 @@ from ost_ros import protocols
 from ost_ros.lockstep import messages as _runtime
 from ost_ros.lockstep.messages import PlanColumns, PlanStep, Sample
 from ost_ros.messages import AgentLost
+from ost_ros.realtime.messages import Digest, Lost, Mark, Need, RtStatus
+from ost_ros.realtime.world import Detection
 
 
 class MessageError(InterfaceError):
     """A message that does not fit its dataclass; the text names the offending field."""
 
 
-# Agent-to-agent messages (every kind a registered protocol broadcasts) travel as Samples; the
-# world's notices (AgentLost) only inside Tick/RunEnd.
-PROTOCOL_MESSAGES: tuple[type, ...] = protocols.messages()
+# Agent-to-agent messages (every kind a registered protocol broadcasts, and a survivor's status
+# without a barrier) travel as Samples; the world's notices (AgentLost) only inside Tick/RunEnd.
+PROTOCOL_MESSAGES: tuple[type, ...] = (*protocols.messages(), RtStatus)
 RUNTIME_MESSAGES: tuple[type, ...] = _runtime.RUNTIME_MESSAGES
+# What realtime runs say besides (docs/realtime.md): watermarks, requests for them, the world's
+# stamped failure notices, coordination digests, a robot's detections. Each has a ``run`` field
+# on the wire that the node sets and checks (:func:`to_ros` ``run=``).
+REALTIME_MESSAGES: tuple[type, ...] = (Mark, Need, Lost, Digest, Detection)
 _NOT_ON_WIRE = {"version"}
 _WORLD_FIELDS = {(AgentLost, "sender")}  # always WORLD: implied by the message kind
 
@@ -100,6 +106,8 @@ def _converters(hint: Any, field_type: str, where: str) -> tuple[ToRos, FromRos]
         return c.to_ros, c.from_ros
     if hint in (int, str, bool):
         return (lambda v: v), (lambda v, w: v)
+    if hint is float:
+        return float, (lambda v, w: float(v))
     raise TypeError(f"{where}: unsupported field type {hint!r}")
 
 
@@ -204,7 +212,7 @@ def _codec(cls: type) -> _Codec:
     hints = typing.get_type_hints(cls, globalns=dict(vars(module)))
     fields = []
     for f in dataclasses.fields(cls):
-        if f.name in _NOT_ON_WIRE or (cls, f.name) in _WORLD_FIELDS:
+        if f.name in _NOT_ON_WIRE or any(issubclass(cls, c) and f.name == n for c, n in _WORLD_FIELDS):
             continue
         if f.name not in types_:
             raise TypeError(f"{cls.__name__}.{f.name}: no such field in {type_name(cls)}")
@@ -217,12 +225,15 @@ def _codec(cls: type) -> _Codec:
 # ----------------------------------------------------------------------------- public
 
 
-def to_ros(value: Any) -> Any:
-    """The ``ost_msgs`` message of a dataclass, or of a :class:`Sample` (with ``run``/``seq``)."""
+def to_ros(value: Any, run: str | None = None) -> Any:
+    """The ``ost_msgs`` message of a dataclass, or of a :class:`Sample` (with ``run``/``seq``);
+    ``run``: the run id of a realtime message."""
     if isinstance(value, Sample):
         return _codec(type(value.message)).to_ros(
             value.message, run=value.run, step=value.step, seq=value.seq
         )
+    if run is not None:
+        return _codec(type(value)).to_ros(value, run=run)
     return _codec(type(value)).to_ros(value)
 
 
@@ -236,6 +247,16 @@ def from_ros(msg: Any) -> Any:
     if cls in PROTOCOL_MESSAGES:
         return Sample(value, int(msg.step), int(msg.seq), msg.run)
     return value
+
+
+def to_ros_cell(cell: tuple[int, int]) -> Any:
+    """A cell as ``ost_msgs/Cell``."""
+    return ros.Cell(x=int(cell[0]), y=int(cell[1]))
+
+
+def from_ros_value(cls: type, msg: Any, where: str) -> Any:
+    """A nested message (an ``ost_msgs/ObjectInfo`` in a service's answer, say) as its dataclass."""
+    return _codec(cls).from_ros(msg, where)
 
 
 def round_trip(value: Any) -> Any:
@@ -254,6 +275,6 @@ def sender_of(msg: Any) -> str:
 
 
 _BY_ROS: dict[type, type] = {}
-for _cls in (*PROTOCOL_MESSAGES, *RUNTIME_MESSAGES):
+for _cls in (*PROTOCOL_MESSAGES, *RUNTIME_MESSAGES, *REALTIME_MESSAGES):
     _BY_ROS[ros_type(_cls)] = _cls
     _codec(_cls)

@@ -41,6 +41,8 @@ INT_MAX = 2**31 - 1
 FAILURE_TIMEOUT_S = 1.0
 # Endpoints whose matching has not moved for this long at start are created anew (s).
 REDISCOVER_S = 15.0
+# A realtime run's default pace: the demo's 11 240 steps in about 6 s of wall time.
+RTF = 2000.0
 # Quiet steps an agent plans ahead for event skipping (the protocols' plan horizon).
 LOOKAHEAD = PLAN_HORIZON
 NAMESPACE_RE = re.compile(r"^/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
@@ -61,7 +63,7 @@ class Setting:
     name: str
     default: Any
     help: str
-    group: str  # the --help section: scenario, protocol, ROS, watch, run, faults
+    group: str  # the --help section: scenario, protocol, realtime, ROS, watch, run, faults
     nodes: tuple[str, ...] = ()  # the node roles that declare it as a ROS parameter
     lo: float | None = None  # inclusive range (nodes: the descriptor's range)
     hi: float | None = None
@@ -83,6 +85,15 @@ class Setting:
     def describe(self) -> str:
         """The help line with its range or choices (a node parameter's description)."""
         return self.help
+
+
+def agent_step_steps(text: str) -> tuple[int, int, int]:
+    """AGENT:STEP:S (non-negative integers, S at least 1): a stall."""
+    parts = text.split(":")
+    if len(parts) != 3 or not all(p.isdigit() for p in parts) or int(parts[2]) < 1:
+        raise ValueError(f"expected AGENT:STEP:S (S >= 1), got {text!r}")
+    a, t, n = (int(p) for p in parts)
+    return a, t, n
 
 
 def agent_step(text: str) -> tuple[int, int]:
@@ -130,7 +141,7 @@ def _settings() -> tuple[Setting, ...]:
         S("partition", "equal", "search areas: equal, or negotiated first (by speed and zones)",
           "scenario", choices=("equal", "negotiated")),
         # ---------------------------------------------------------------- protocol
-        S("protocol", "ccp", "cooperation protocol (ost protocols list)", "protocol", A,
+        S("protocol", "ccp", "cooperation protocol (ost protocols list)", "protocol", WA,
           choices=protocols.names()),
         S("ci", 1, "coordination trigger: coordinate after every ci-th found object", "protocol", A,
           1, INT_MAX, metavar="K"),
@@ -146,6 +157,20 @@ def _settings() -> tuple[Setting, ...]:
         S("max_steps", 0, "step limit (0: the simulator's)", "protocol", W, 0, INT_MAX, metavar="S"),
         S("lookahead", LOOKAHEAD, "quiet steps an agent plans ahead for event skipping (0: off)",
           "protocol", A, 0, 100_000, option=False),
+        # ---------------------------------------------------------------- realtime
+        S("realtime", False, "run without a barrier: robots move in sim time at --rtf, each commanding "
+          "its base by an action, the same schedule kept by stamped messages (docs/realtime.md)",
+          "realtime", WA),
+        S("rtf", RTF, "real-time factor: steps (cells at unit speed) per wall second; 1 = a real robot's "
+          "pace", "realtime", WA, 0.01, 1_000_000.0, metavar="R"),
+        S("speed_jitter", 0.0, "each goal's time per cell times a seeded draw in [1, 1+X]", "realtime", W,
+          0.0, 100.0, metavar="X"),
+        S("stall", [], "robot AGENT stands still for S steps from step STEP (repeatable)", "realtime",
+          metavar="AGENT:STEP:S", parse=agent_step_steps),
+        S("stalls", "", "the stalls (AGENT:STEP:S, comma-separated)", "realtime", W, option=False),
+        S("noise_seed", 0, "seed of the speed noise", "realtime", W, 0, INT_MAX, metavar="S"),
+        S("clock_hz", 50.0, "how often the world publishes <ns>/clock (wall Hz)", "realtime", W, 1.0,
+          1000.0, metavar="HZ"),
         # ---------------------------------------------------------------- ROS
         S("namespace", "ost", "the run's namespace: two teams in two namespaces share a domain",
           "ROS", metavar="NS"),
@@ -346,29 +371,29 @@ class RunConfig:
 
     def check_protocol(self, scenario: Any = None) -> protocols.ProtocolSpec:
         """What the protocol can run, asked of the registry (the scenario's team, the
-        organisation, a silenced negotiator, own sweeps)."""
+        organisation, a silenced negotiator, own sweeps) — and, with ``realtime``, whether it
+        runs without a barrier."""
         silence = bool(self["mute_negotiation"]) or self["mute_negotiation_from"] >= 0
         try:
-            return protocols.check(self["protocol"], scenario=scenario, policy=self.policy(), silence=silence)
+            spec = protocols.check(self["protocol"], scenario=scenario, policy=self.policy(), silence=silence)
+            if self["realtime"]:
+                from ost_ros.realtime.run import check_realtime
+
+                check_realtime(self["protocol"], self.policy(), self.protocol_settings())
+            return spec
         except protocols.ProtocolError as exc:
             raise ConfigError("protocol", str(exc)) from None
+
+    def stalls(self) -> list[tuple[int, float, float]]:
+        """The stalls (agent, from step, for steps), from the option or the world's parameter."""
+        items = self["stall"] or [x for x in self["stalls"].split(",") if x.strip()]
+        return [(a, float(t), float(n)) for a, t, n in map(agent_step_steps, items)]
 
     # ------------------------------------------------------------------ a whole run's checks
 
     def check_run(self, is_root: bool) -> None:
         """The checks of a bring-up (ost up, ost_up.sh, the launch file): one error each."""
-        given = self.given
-        if self["scenario"]:
-            if given & {"objects", "seed", "width", "height", "nmax"}:
-                raise ConfigError(
-                    "scenario", "--scenario excludes --objects/--seed (and the generator's sizes)"
-                )
-        elif not (self["agents"] >= 1 and self["objects"] >= 1):
-            raise ConfigError("", "give --agents N --objects M [--seed S], or --scenario FILE")
-        if self["partition"] == "negotiated" and self["scenario"] and self["agents"]:
-            raise ConfigError(
-                "partition", "negotiated: --agents would replace the scenario's team; give a scenario with it"
-            )
+        self._check_scenario()
         if not NAMESPACE_RE.match(self["namespace"]):
             raise ConfigError(
                 "namespace", f"{self['namespace']!r} is not a ROS namespace (letters, digits, _ and /)"
@@ -380,14 +405,37 @@ class RunConfig:
                 raise ConfigError("hosts", "simulated hosts need root (network namespaces)")
         elif self["loss"] or self["discovery"] != "multicast":
             raise ConfigError("loss" if self["loss"] else "discovery", "needs --hosts K")
+        if self["keys"] and self["insecure"]:
+            raise ConfigError("keys", "--keys and --insecure exclude each other")
+        self._check_modes()
+        self.check_protocol()
+
+    def _check_scenario(self) -> None:
+        if self["scenario"]:
+            if self.given & {"objects", "seed", "width", "height", "nmax"}:
+                raise ConfigError("", "--scenario excludes --objects/--seed (and the generator's sizes)")
+        elif not (self["agents"] >= 1 and self["objects"] >= 1):
+            raise ConfigError("", "give --agents N --objects M [--seed S], or --scenario FILE")
+        if self["partition"] == "negotiated" and self["scenario"] and self["agents"]:
+            raise ConfigError(
+                "partition", "negotiated: --agents would replace the scenario's team; give a scenario with it"
+            )
+
+    def _check_modes(self) -> None:
+        """Options of another protocol, or of the other mode (lockstep / realtime)."""
         spec = protocols.get(self["protocol"])
         for other in protocols.REGISTRY.values():
             for opt in other.options:
-                if opt.name in given and opt not in spec.options:
+                if opt.name in self.given and opt not in spec.options:
                     raise ConfigError(opt.name, f"an option of {other.name}, not of {spec.name}")
-        if self["keys"] and self["insecure"]:
-            raise ConfigError("keys", "--keys and --insecure exclude each other")
-        self.check_protocol()
+        if self["realtime"]:
+            for name in ("respawn_world", "foxglove", "mute_negotiation"):
+                if self[name]:
+                    raise ConfigError(name, "is for the lockstep run, not with --realtime")
+            return
+        named = name_given(self.given, ("rtf", "speed_jitter", "stall", "noise_seed", "clock_hz"))
+        if named:
+            raise ConfigError(named, "needs --realtime")
 
     # ------------------------------------------------------------------ per process
 
@@ -416,10 +464,17 @@ class RunConfig:
                 out["mute_negotiation_from"] = mute[1]
         if role == WATCH:
             out["foxglove_port"] = self["foxglove"] or out["foxglove_port"]
+        if role == WORLD and self["stall"]:
+            out["stalls"] = ",".join(self["stall"])
         out.update(node)
         for name, value in out.items():
             check_value(BY_NAME[name], value)
         return out
+
+
+def name_given(given: frozenset[str], names: tuple[str, ...]) -> str:
+    """The first of ``names`` that was given ('' if none)."""
+    return next((n for n in names if n in given), "")
 
 
 def from_parameters(values: Mapping[str, Any]) -> RunConfig:

@@ -43,7 +43,7 @@ from ost_ros.bounds import lower_bound
 from ost_ros.lockstep.messages import Acted, AgentReport, Ready, RunEnd, RunInfo, Tick
 from ost_ros.lockstep.world import ProtocolViolation, WorldRuntime
 from ost_ros.node import transport as tp
-from ost_ros.node.params import ParameterError, declare_role
+from ost_ros.node.params import ParameterError, declare_role, realtime_from_args
 from ost_ros.node.run import run_node
 from ost_ros.node.signing import node_auth
 from ost_ros.runconfig import WORLD
@@ -542,6 +542,19 @@ def process_age() -> float | None:
 
 
 def main(args=None) -> int:
+    if realtime_from_args(sys.argv if args is None else args):
+        from world_node.realtime import RealtimeWorldNode
+
+        # rclpy's EventsExecutor cannot serve actions (a goal's answer never comes): the single one
+        return run_node(
+            "world_node",
+            RealtimeWorldNode,
+            args,
+            done=lambda node: node.done,
+            code=lambda node: node.exit_code,
+            executor_name=lambda _node: "single",
+            interrupted=130,
+        )
     return run_node(
         "world_node",
         WorldNode,

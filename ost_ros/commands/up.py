@@ -24,7 +24,7 @@ from ost_ros.commands.args import OneLineParser, leaf
 from ost_ros.errors import UsageError
 from ost_ros.runconfig import BY_NAME, ConfigError, RunConfig, Setting, options
 
-GROUPS = ("scenario", "protocol", "ROS", "watch", "run", "faults")
+GROUPS = ("scenario", "protocol", "realtime", "ROS", "watch", "run", "faults")
 
 
 def add_options(p: argparse.ArgumentParser) -> None:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 from ost_ros import protocols
 from ost_ros.coordination import Assignment, CoordinationPolicy
@@ -225,6 +226,7 @@ class WorldRuntime:
             result = self.world.result(protocol=self.protocol, messages=self.messages)
             result.error = self.aborted or "every agent failed"
             return result
+        return result_from_reports(self.world, reports, self.messages, self.protocol)
         first = reports[0]
         agreement = all(r.view == first.view for r in reports)
         found: dict[int, int] = {}
@@ -247,3 +249,35 @@ class WorldRuntime:
         if not result.completed and result.error is None:
             result.error = f"not finished after {self.world.t} steps (deadlock or step limit)"
         return result
+
+
+def result_from_reports(
+    world: Any, reports: Sequence[AgentReport], messages: int, protocol: str
+) -> RunResult:
+    """The run's record — ``world.result`` (the lockstep :class:`World` or the realtime world) — with
+    what the agents know from their reports: the prediction and schedule (the first's), agreement
+    (every view alike), when each object was first found, their warnings. As
+    ``ost_ros.engines.finish_result`` builds it in process."""
+    if not reports:
+        result = world.result(protocol=protocol, messages=messages)
+        result.error = result.error or "every agent failed"
+        return result
+    first = reports[0]
+    found: dict[int, int] = {}
+    for r in reports:  # CCP: everyone knows every find; HCP: each owner knows its own
+        for oid, t in r.found:
+            found[oid] = min(t, found.get(oid, t))
+    result = world.result(
+        protocol=first.protocol,
+        trigger=first.trigger,
+        predicted_makespan=first.predicted_makespan,
+        coordinations=first.coordinations,
+        messages=messages,
+        agreement=all(r.view == first.view for r in reports),
+        warnings=[f"agent {r.agent}: {w}" for r in reports for w in r.warnings],
+        found=dict(sorted(found.items())),
+        schedule=[Assignment(e.object, tuple(e.agents), e.start, e.finish) for e in first.schedule],
+    )
+    if not result.completed and result.error is None:
+        result.error = f"not finished after {world.t} steps (deadlock or step limit)"
+    return result

@@ -12,10 +12,12 @@ from __future__ import annotations
 
 from typing import Any
 
+import yaml
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 
 from ost_ros.errors import OstError
+from ost_ros.yamlload import safe_load
 
 INT_MAX = 2**31 - 1
 
@@ -67,3 +69,42 @@ def declare_role(node: Node, role: str) -> dict[str, Any]:
     except runconfig.ConfigError as exc:
         raise ParameterError(f"{exc.setting}: {exc}") from None
     return values
+
+
+def param_from_args(argv: list[str], name: str) -> Any:
+    """Parameter ``name`` as a node's ROS arguments set it — ``-p``/``--param name:=V`` or a
+    ``--params-file`` (the last assignment wins, as in rcl) — as text or the file's value; None
+    when unset. For what a node must know before it exists (its name, its mode); the node still
+    declares and checks the parameter itself."""
+    value = None
+    ros, k = False, 0
+    while k < len(argv):
+        a = argv[k]
+        if a == "--ros-args":
+            ros = True
+        elif a == "--":
+            ros = False
+        elif ros and a in ("-p", "--param") and k + 1 < len(argv):
+            key, _, v = argv[k + 1].partition(":=")
+            if key == name:
+                value = v
+            k += 1
+        elif ros and a == "--params-file" and k + 1 < len(argv):
+            try:
+                with open(argv[k + 1]) as f:
+                    doc = safe_load(f)
+                for section in (doc or {}).values():
+                    params = (section or {}).get("ros__parameters", {}) if isinstance(section, dict) else {}
+                    if isinstance(params, dict) and name in params:
+                        value = params[name]
+            except (OSError, yaml.YAMLError, AttributeError):
+                pass  # the node reports a bad params file itself
+            k += 1
+        k += 1
+    return value
+
+
+def realtime_from_args(argv: list[str]) -> bool:
+    """Whether the ROS arguments ask for a realtime node (``realtime:=true``)."""
+    value = param_from_args(argv, "realtime")
+    return value is True or (isinstance(value, str) and value.strip().lower() in ("true", "1", "yes"))

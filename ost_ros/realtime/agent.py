@@ -135,6 +135,18 @@ class RtScheduleAgent(ScheduleAgent):
             self.state = GlobalState.DECISION
             self._outbox.append(self._search_done(obs.t))
 
+    def report_late(self, t: int, sensed: Sequence[ObjectInfo]) -> list:
+        """Finds its base sensed at step ``t`` that it hears of only now (a network between the
+        robot and its base): reported as sensed then, without acting (it has moved on)."""
+        if self.state is not GlobalState.SEARCHING:
+            return []
+        out = []
+        for o in sensed:
+            if self.news(o):
+                self.reported.add(o.id)
+                out.append(ObjectFound(self.id, t, o))
+        return out
+
     def _search_done(self, t: int) -> SearchDone:
         return SearchDone(self.id, t)
 
@@ -171,6 +183,7 @@ class RealtimeAgent:
 
     agent: RtScheduleAgent
     team: tuple[int, ...]
+    remote_base: bool = False  # its base's events cross a network (an agent node), not in process
     speaker: Speaker = field(init=False)
     batches: Batches = field(init=False)
     max_lag: float = 0.0  # the most a batch was processed after its stamp (steps)
@@ -253,7 +266,9 @@ class RealtimeAgent:
             self.goal, self._sweep, self._carry_started = None, None, -1
             if res.code == "MEMBER_FAILED" and self.agent.current is not None:
                 self._blocked = self.agent.current.object  # until the comm hears of the failure
-            elif res.code == "START":  # planned from a stale feedback: look again, decide again
+            elif res.code in ("START", "PREEMPTED"):
+                # planned from a stale feedback, or another client took its base over (an
+                # operator's goal): look again, decide again
                 self._decided = -1.0
                 self._decide_at(now, now)
             elif res.outcome == REFUSED:
@@ -263,7 +278,14 @@ class RealtimeAgent:
     def on_detection(self, det: Detection, now: float) -> list[Output]:
         a = self.agent
         if a.state is GlobalState.SEARCHING and any(a.news(o) for o in det.objects):
-            self._decide_at(det.time, now)
+            if self.remote_base or det.time < now - EPS:
+                # Its base is across a network (a node: the robot moves on while it hears of the
+                # detection and asks where it is), or this one came late: what it sensed there is
+                # reported as of then, not looked for again (a sweeping robot only reports).
+                for m in a.report_late(math.ceil(det.time - EPS), det.sensed):
+                    self._send(m, det.time)
+            else:
+                self._decide_at(det.time, now)
         return self._flush(now)
 
     def on_carry(self, ev: CarryStarted, now: float) -> list[Output]:

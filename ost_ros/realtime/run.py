@@ -69,17 +69,21 @@ def make_agents(
     check_realtime(protocol, policy, settings)
     check(protocol, scenario=scenario, policy=policy)
     team = TeamInfo.from_scenario(scenario)
-    out = []
-    for a in scenario.agents:
-        comm: RtCcpComm | RtNcpComm | RtAuctionComm
-        if protocol == "ccp":
-            comm = RtCcpComm(a.id, team, policy)
-        elif protocol == "ncp":
-            comm = RtNcpComm(a.id, team, policy, settings=settings or NegotiationSettings())
-        else:
-            comm = RtAuctionComm(a.id, team, policy)
-        out.append(RealtimeAgent(RtScheduleAgent(a.id, team, comm, protocol), team.agent_ids))
-    return out
+    return [make_agent(team, a.id, protocol, policy, settings) for a in scenario.agents]
+
+
+def make_agent(
+    team: TeamInfo, agent_id: int, protocol: str, policy: CoordinationPolicy, settings: Any = None
+) -> RealtimeAgent:
+    """One robot's realtime runtime (an agent node builds its own; the protocol already checked)."""
+    comm: RtCcpComm | RtNcpComm | RtAuctionComm
+    if protocol == "ccp":
+        comm = RtCcpComm(agent_id, team, policy)
+    elif protocol == "ncp":
+        comm = RtNcpComm(agent_id, team, policy, settings=settings or NegotiationSettings())
+    else:
+        comm = RtAuctionComm(agent_id, team, policy)
+    return RealtimeAgent(RtScheduleAgent(agent_id, team, comm, protocol), team.agent_ids)
 
 
 @dataclass
@@ -307,6 +311,7 @@ __all__ = [
     "Latency",
     "RealtimeReport",
     "check_realtime",
+    "make_agent",
     "make_agents",
     "run_realtime",
 ]

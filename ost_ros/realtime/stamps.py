@@ -162,6 +162,11 @@ class Batches:
         self._pending.setdefault(env.stamp, {})[(env.sender, env.seq)] = env
         return True
 
+    def seen(self, sender: int, seq: int) -> bool:
+        """Whether message ``seq`` of ``sender`` has arrived (a copy again is a duplicate)."""
+        peer = self._peers.get(sender)
+        return peer is not None and (seq <= peer.contiguous or seq in peer.ahead)
+
     def accept_mark(self, mark: Mark) -> None:
         peer = self._peers.get(mark.sender)
         if peer is not None:

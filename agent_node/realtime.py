@@ -1,0 +1,403 @@
+"""``agent_node`` of a realtime run (``realtime:=true``; docs/realtime.md): one robot with no barrier.
+
+The node wires :class:`~ost_ros.realtime.agent.RealtimeAgent` — the protocol's own agent as a set of
+callbacks — to DDS, and does nothing else: peers' messages (stamped ``Envelope`` s on the
+protocol's topics, watermarks on ``marks``, requests on ``needs``, the world's notices on
+``lost``), its base's events (the ``FollowCells`` action's results and lift feedback, its
+``detections``, ``where`` answers) and its timers go in as they arrive; what the runtime returns —
+messages to publish, goals for its base, a question for ``where``, a timer, a digest — goes out.
+
+Time is the world's ``<ns>/clock`` (sim time, steps), extrapolated between two clock messages at
+the run's ``rtf`` so the robot's own timers are exact; it never goes back. A base event that comes
+later than the robot's clock (the network) is taken then, and a message it causes is stamped
+then: the agreement holds, only a little time is lost.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import signal
+import time
+from typing import Any
+
+from ost_msgs.action import FollowCells
+from ost_msgs.srv import Where
+from rclpy.action import ActionClient
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
+
+from ost_msgs_py import wire
+from ost_ros.lockstep.messages import AgentReport, Ready, RunEnd, Sample, ScheduleEntry
+from ost_ros.node import realtime as rtp
+from ost_ros.node import transport as tp
+from ost_ros.node.params import ParameterError, declare_role
+from ost_ros.node.signing import node_auth
+from ost_ros.realtime.agent import AskFeedback, Output, Publish, RealtimeAgent, SendGoal, WakeAt
+from ost_ros.realtime.messages import Digest, Envelope, Lost, Mark, Need, ObjectInfo
+from ost_ros.realtime.run import make_agent
+from ost_ros.realtime.stamps import LateMessage
+from ost_ros.realtime.world import Carry, CarryStarted, Detection, Feedback, Follow, GoalResult, Stand
+from ost_ros.runconfig import AGENT, ConfigError, RunConfig
+from ost_ros.scenario import ScenarioError, load_scenario, with_team
+from ost_ros.team import TeamInfo
+
+START_S = 0.01  # how often it looks whether its endpoints are matched, before the run
+
+
+class RealtimeAgentNode(Node):
+    """``<ns>/agent_<id>`` of a realtime run (see the module docstring)."""
+
+    def __init__(self, name: str = "agent"):
+        super().__init__(name, namespace=tp.NAMESPACE)
+        p = declare_role(self, AGENT)
+        if p["agent_id"] < 0:
+            raise ParameterError("agent_id: must be set to a non-negative id (-p agent_id:=N)")
+        if not p["scenario"]:
+            raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
+        cfg = RunConfig.of(p)
+        try:
+            scenario = load_scenario(p["scenario"])
+            if p["agents"]:
+                scenario = with_team(scenario, p["agents"])
+        except ScenarioError as exc:
+            raise ParameterError(f"scenario: {exc}") from None
+        try:
+            cfg.check_protocol(scenario)
+        except ConfigError as exc:
+            raise ParameterError(f"protocol: {exc}") from None
+        ids = tuple(a.id for a in scenario.agents)
+        me = p["agent_id"]
+        if me not in ids:
+            raise ParameterError(f"agent_id: {me} is not in the scenario's team {list(ids)}")
+        self.me, self.ids, self.p = me, ids, p
+        self.rt: RealtimeAgent = make_agent(
+            TeamInfo.from_scenario(scenario), me, p["protocol"], cfg.policy(), cfg.protocol_settings()
+        )
+        self.rt.remote_base = True
+        self.fingerprint = tp.scenario_fingerprint(scenario)
+        self.guard = node_auth(p["keys"], p["insecure"], me)
+        self.run = self.guard.signer.run if self.guard.signer is not None else ""
+        self.rtf = float(p["rtf"])
+        self.throttle = tp.Throttle(self.get_logger())
+        self.done = False
+        self.exit_code = 0
+        self.ready_sent = self.started = False
+        self.clock = (0.0, 0.0)  # (sim time, monotonic time it came)
+        self._now = 0.0
+        self.goal_kind: dict[int, tuple[int, tuple[int, ...]]] = {}  # goal id -> (object, group)
+        self.wake_timer: Any = None
+        self.wake_at: float | None = None
+        self.report_sent = False
+        self.die_at = p["die_at_step"]
+        # Where its base stands idle since its last goal ended (time, cell, goal, what it senses):
+        # where-am-I is answered here then, without a round trip to the world.
+        self.idle: tuple[float, tuple[int, int], int, tuple] | None = None
+        self.warm: Any = None
+        self.last_goal = 0
+        self._build_endpoints()
+        self.start_timer = self.create_timer(START_S, self.try_ready)
+
+    # ------------------------------------------------------------------ endpoints
+
+    def _build_endpoints(self) -> None:
+        q, me = tp.LOCKSTEP_QOS, self.me
+        self.kind_pubs: dict[type, Any] = {}
+        self.kind_subs = []
+        for kind in rtp.message_kinds(self.p["protocol"]):
+            topic = tp.message_topic(kind)
+            self.kind_pubs[kind] = self.create_publisher(wire.ros_type(kind), topic, q)
+            self.kind_subs.append(
+                self.create_subscription(
+                    wire.ros_type(kind), topic, functools.partial(self.on_sample, self.resolve_topic_name(topic)), q
+                )
+            )
+        self.pub_marks = self.create_publisher(wire.ros_type(Mark), rtp.MARKS, q)
+        self.sub_marks = self.create_subscription(wire.ros_type(Mark), rtp.MARKS, self.on_mark, q)
+        self.pub_needs = self.create_publisher(wire.ros_type(Need), rtp.NEEDS, q)
+        self.sub_needs = self.create_subscription(wire.ros_type(Need), rtp.NEEDS, self.on_need, q)
+        self.sub_lost = self.create_subscription(
+            wire.ros_type(Lost), rtp.LOST, self.on_lost, tp.LATCHED_ALL_QOS
+        )
+        self.pub_digests = self.create_publisher(wire.ros_type(Digest), rtp.DIGESTS, q)
+        self.sub_clock = self.create_subscription(Clock, tp.CLOCK, self.on_clock, tp.LATEST_QOS)
+        self.sub_det = self.create_subscription(
+            wire.ros_type(Detection), rtp.detections_topic(me), self.on_detection, q
+        )
+        self.base = ActionClient(self, FollowCells, rtp.follow_action(me))
+        self.where = self.create_client(Where, rtp.where_service(me))
+        self.pub_ready = self.create_publisher(wire.ros_type(Ready), tp.READY, tp.LATCHED_ALL_QOS)
+        self.pub_report = self.create_publisher(wire.ros_type(AgentReport), tp.REPORTS, tp.LATCHED_ALL_QOS)
+        self.sub_end = self.create_subscription(
+            wire.ros_type(RunEnd), tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS
+        )
+        self.sub_result = self.create_subscription(String, tp.RESULT, self.on_result, tp.RESULT_QOS)
+        lease = self.p["failure_timeout"]
+        self.pub_alive = None
+        if lease > 0:
+            self.pub_alive = self.create_publisher(String, tp.alive_topic(me), tp.alive_qos(float(lease)))
+
+    def lacking(self) -> list[str]:
+        """What is not matched yet: every peer on every topic, the world's endpoints."""
+        n, out = len(self.ids), []
+        for kind, pub in self.kind_pubs.items():
+            if pub.get_subscription_count() < n + 1:  # the team and the world
+                out.append(f"{tp.message_topic(kind)} readers")
+        for sub in self.kind_subs:
+            if sub.get_publisher_count() < n + 1:
+                out.append(f"{sub.topic_name} writers")
+        if self.pub_marks.get_subscription_count() < n + 1 or self.sub_marks.get_publisher_count() < n:
+            out.append("marks")
+        if self.pub_needs.get_subscription_count() < n or self.sub_needs.get_publisher_count() < n:
+            out.append("needs")
+        for what, ok in (
+            ("clock", self.sub_clock.get_publisher_count() >= 1),
+            ("detections", self.sub_det.get_publisher_count() >= 1),
+            ("lost", self.sub_lost.get_publisher_count() >= 1),
+            ("digests", self.pub_digests.get_subscription_count() >= 1),
+            ("follow_cells", self.base.server_is_ready()),
+            ("where", self.where.service_is_ready()),
+            ("alive", self.pub_alive is None or self.pub_alive.get_subscription_count() >= 1),
+        ):
+            if not ok:
+                out.append(what)
+        return out
+
+    def try_ready(self) -> None:
+        if self.ready_sent:
+            return
+        if self.lacking():
+            return
+        if self.warm is None:  # a first call sets up its reply path: not at the run's first decision
+            self.warm = self.where.call_async(Where.Request(at=0.0))
+            return
+        if not self.warm.done():
+            return
+        r = self.warm.result()
+        if r is not None:  # the base at sim time 0 (the world does not move before the start)
+            sensed = tuple(wire.from_ros_value(ObjectInfo, o, "where.sensed") for o in r.sensed)
+            self.idle = (0.0, (r.cell.x, r.cell.y), int(r.goal), sensed)
+        self.ready_sent = True
+        self.start_timer.cancel()
+        if self.pub_alive is not None:
+            self.pub_alive.publish(String(data=f"agent {self.me}"))
+        ready = Ready(self.me, self.p["protocol"], self.fingerprint, self.p["coordination"])
+        self.guard.publish(self.pub_ready, wire.to_ros(ready))
+
+    # ------------------------------------------------------------------ time
+
+    def now(self) -> float:
+        """Sim time: the world's clock, extrapolated at rtf since it came; never backwards."""
+        sim, at = self.clock
+        self._now = max(self._now, sim + (time.monotonic() - at) * self.rtf)
+        return self._now
+
+    def on_clock(self, msg: Clock) -> None:
+        t = msg.clock.sec + msg.clock.nanosec * 1e-9
+        self.clock = (t, time.monotonic())
+        if not self.started:
+            if not self.ready_sent:
+                return
+            self.started = True
+            self._now = t
+            self.out(self.rt.start(self.now()))
+            return
+        now = self.now()
+        if 0 <= self.die_at <= now:  # fault injection: die as a robot does, with no last word
+            self.get_logger().warning(
+                f"die_at_step {self.die_at}: killing this process (SIGKILL) at {now:.1f}"
+            )
+            os.kill(os.getpid(), signal.SIGKILL)
+        self.fire(now)
+
+    def arm(self, t: float) -> None:
+        """A timer for sim time ``t`` (the earliest asked for wins)."""
+        if self.wake_at is not None and self.wake_at <= t:
+            return
+        self.wake_at = t
+        if self.wake_timer is not None:
+            self.destroy_timer(self.wake_timer)
+        delay = max(0.0, (t - self.now()) / self.rtf)
+        self.wake_timer = self.create_timer(max(delay, 1e-4), self.on_wake)
+
+    def on_wake(self) -> None:
+        if self.wake_timer is not None:
+            self.destroy_timer(self.wake_timer)
+        self.wake_timer, self.wake_at = None, None
+        self.fire(self.now())
+
+    def fire(self, now: float) -> None:
+        """The runtime's timers due by now (and the time passed committed)."""
+        if self.started and not self.report_sent:
+            self.out(self.rt.on_clock(now))
+            pending = sorted(w for w in self.rt._wakes if w > now)
+            if pending:
+                self.arm(pending[0])
+
+    # ------------------------------------------------------------------ what comes in
+
+    def on_sample(self, topic: str, msg) -> None:
+        if msg.run != self.run or msg.sender == self.me or self.rt.batches.seen(msg.sender, msg.seq):
+            return  # (a copy it has: the world publishes a failed robot's messages again)
+        s = tp.from_ros_or_warn(msg, topic, self.throttle, self.guard)
+        if isinstance(s, Sample):
+            env = Envelope(s.message.sender, int(s.seq), int(s.step), s.message)
+            self.take(env)
+
+    def on_mark(self, msg) -> None:
+        if msg.run == self.run and msg.sender != self.me:
+            m = tp.from_ros_or_warn(msg, self.sub_marks.topic_name, self.throttle, self.guard)
+            if m is not None:
+                self.take(m)
+
+    def on_need(self, msg) -> None:
+        if msg.run == self.run and msg.sender != self.me:
+            m = tp.from_ros_or_warn(msg, self.sub_needs.topic_name, self.throttle, self.guard)
+            if m is not None:
+                self.take(m)
+
+    def on_lost(self, msg) -> None:
+        if msg.run == self.run:
+            m = tp.from_ros_or_warn(msg, self.sub_lost.topic_name, self.throttle, self.guard)
+            if m is not None:
+                self.take(m)
+
+    def take(self, payload: Envelope | Mark | Need | Lost) -> None:
+        if self.started and not self.report_sent:
+            try:
+                self.out(self.rt.on_message(payload, self.now()))
+            except LateMessage as exc:  # a peer broke its watermark: said, never a crash
+                self.throttle.note(("late", str(getattr(payload, "sender", "?"))), f"dropped: {exc}")
+
+    def on_detection(self, msg) -> None:
+        if msg.run != self.run:
+            return
+        d = tp.from_ros_or_warn(msg, self.sub_det.topic_name, self.throttle, self.guard)
+        if d is not None and self.started:
+            if os.environ.get("OST_RT_DEBUG"):
+                self.get_logger().info(f"t={self._now:.1f} detection {d}")
+            self.out(self.rt.on_detection(d, self.now()))
+
+    # ------------------------------------------------------------------ what goes out
+
+    def out(self, outputs: list[Output]) -> None:
+        if os.environ.get("OST_RT_DEBUG"):
+            self.get_logger().info(f"t={self._now:.1f} out {outputs}")
+        for o in outputs:
+            if isinstance(o, Publish):
+                self.publish(o.payload)
+            elif isinstance(o, Digest):
+                self.guard.publish(self.pub_digests, wire.to_ros(o, run=self.run))
+            elif isinstance(o, SendGoal):
+                self.send_goal(o)
+            elif isinstance(o, AskFeedback):
+                if self.idle is not None:  # it stands still where its last goal ended: known here
+                    t, cell, gid, sensed = self.idle
+                    fb = Feedback(self.me, max(float(o.at), t), cell, gid, -1, -1, sensed)
+                    self.out(self.rt.on_feedback(fb, self.now()))
+                else:
+                    fut = self.where.call_async(Where.Request(at=float(o.at)))
+                    fut.add_done_callback(self.on_where)
+            elif isinstance(o, WakeAt):
+                self.arm(o.time)
+
+    def publish(self, payload: Envelope | Mark | Need) -> None:
+        if isinstance(payload, Envelope):
+            kind = type(payload.message)
+            sample = Sample(payload.message, payload.stamp, payload.seq, self.run)
+            self.guard.publish(self.kind_pubs[kind], wire.to_ros(sample))
+        elif isinstance(payload, Mark):
+            self.guard.publish(self.pub_marks, wire.to_ros(payload, run=self.run))
+        else:
+            self.guard.publish(self.pub_needs, wire.to_ros(payload, run=self.run))
+
+    def send_goal(self, o: SendGoal) -> None:
+        self.last_goal = o.id
+        if self.idle is not None and isinstance(o.goal, Stand):
+            self.idle = (self.idle[0], self.idle[1], o.id, self.idle[3])  # still there
+        else:
+            self.idle = None
+        g = FollowCells.Goal()
+        g.id, g.at, g.state = int(o.id), float(o.at), o.goal.state
+        if isinstance(o.goal, Follow):
+            g.kind = FollowCells.Goal.FOLLOW
+            g.path = [wire.to_ros_cell(c) for c in o.goal.path]
+        elif isinstance(o.goal, Carry):
+            g.kind, g.object, g.group = FollowCells.Goal.CARRY, o.goal.object, list(o.goal.group)
+            self.goal_kind[o.id] = (o.goal.object, o.goal.group)
+        else:
+            assert isinstance(o.goal, Stand)
+            g.kind = FollowCells.Goal.STAND
+        sent = self.base.send_goal_async(g, feedback_callback=functools.partial(self.on_feedback, o.id))
+        sent.add_done_callback(functools.partial(self.on_accepted, o.id))
+
+    def on_accepted(self, gid: int, fut) -> None:
+        handle = fut.result()
+        if not handle.accepted:
+            self.on_goal_result(gid, None)
+            return
+        handle.get_result_async().add_done_callback(lambda f: self.on_goal_result(gid, f.result().result))
+
+    def on_goal_result(self, gid: int, res) -> None:
+        self.goal_kind.pop(gid, None)
+        if not self.started or self.report_sent:
+            return
+        if res is None:
+            r = GoalResult(
+                self.me, gid, "refused", self.now(), (0, 0), "REJECTED", "the base rejected the goal"
+            )
+        else:
+            outcome, code = res.outcome, res.code
+            if outcome == "preempted" and gid == self.last_goal:  # not by itself: another client's goal
+                outcome, code = "aborted", "PREEMPTED"
+            r = GoalResult(self.me, gid, outcome, res.t, (res.cell.x, res.cell.y), code, res.reason)
+            if gid == self.last_goal and res.outcome in ("reached", "aborted"):
+                sensed = tuple(wire.from_ros_value(ObjectInfo, o, "result.sensed") for o in res.sensed)
+                self.idle = (float(res.t), r.cell, gid, sensed)
+        if os.environ.get("OST_RT_DEBUG"):
+            self.get_logger().info(f"t={self._now:.1f} result {r}")
+        self.out(self.rt.on_result(r, self.now()))
+
+    def on_feedback(self, gid: int, msg) -> None:
+        fb = msg.feedback
+        if fb.lifted and gid in self.goal_kind and self.started and not self.report_sent:
+            obj, group = self.goal_kind[gid]
+            self.out(self.rt.on_carry(CarryStarted(obj, group, fb.t), self.now()))
+
+    def on_where(self, fut) -> None:
+        r = fut.result()
+        if r is None or not self.started or self.report_sent:
+            return
+        sensed = tuple(wire.from_ros_value(ObjectInfo, o, "where.sensed") for o in r.sensed)
+        fb = Feedback(self.me, r.time, (r.cell.x, r.cell.y), r.goal, r.index, r.carrying, sensed)
+        self.out(self.rt.on_feedback(fb, self.now()))
+
+    # ------------------------------------------------------------------ the end
+
+    def on_end(self, msg) -> None:
+        end = tp.from_ros_or_warn(msg, self.sub_end.topic_name, self.throttle, self.guard)
+        if end is None or end.run != self.run or self.report_sent:
+            return
+        self.report_sent = True
+        k = self.rt.agent.summary()
+        report = AgentReport(
+            self.me,
+            self.p["protocol"],
+            k.trigger,
+            k.predicted_makespan,
+            k.coordinations,
+            tuple(ScheduleEntry(a.object, tuple(a.agents), a.start, a.finish) for a in k.schedule),
+            tuple((int(o), int(t)) for o, t in k.found.items()),
+            tuple(k.warnings),
+            len(self.rt.sent),
+            k.view,
+            run=self.run,
+            dropped=tuple(self.guard.counts().values()),
+            lag=float(self.rt.max_lag),
+        )
+        self.guard.publish(self.pub_report, wire.to_ros(report))
+
+    def on_result(self, _msg: String) -> None:
+        if self.report_sent:
+            self.done = True
