@@ -110,7 +110,10 @@ class RealtimeAgentNode(Node):
             self.kind_pubs[kind] = self.create_publisher(wire.ros_type(kind), topic, q)
             self.kind_subs.append(
                 self.create_subscription(
-                    wire.ros_type(kind), topic, functools.partial(self.on_sample, self.resolve_topic_name(topic)), q
+                    wire.ros_type(kind),
+                    topic,
+                    functools.partial(self.on_sample, self.resolve_topic_name(topic)),
+                    q,
                 )
             )
         self.pub_marks = self.create_publisher(wire.ros_type(Mark), rtp.MARKS, q)

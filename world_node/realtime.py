@@ -143,10 +143,15 @@ class RealtimeWorldNode(Node):
         self.kind_subs = []
         for kind in rtp.message_kinds(p["protocol"]):
             topic = tp.message_topic(kind)
-            self.kind_pubs[self.resolve_topic_name(topic)] = self.create_publisher(wire.ros_type(kind), topic, q)
+            self.kind_pubs[self.resolve_topic_name(topic)] = self.create_publisher(
+                wire.ros_type(kind), topic, q
+            )
             self.kind_subs.append(
                 self.create_subscription(
-                    wire.ros_type(kind), topic, functools.partial(self.on_sample, self.resolve_topic_name(topic)), q
+                    wire.ros_type(kind),
+                    topic,
+                    functools.partial(self.on_sample, self.resolve_topic_name(topic)),
+                    q,
                 )
             )
         self.sub_marks = self.create_subscription(wire.ros_type(Mark), rtp.MARKS, self.on_mark, q)
