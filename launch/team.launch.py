@@ -61,6 +61,7 @@ def _nodes(context: LaunchContext) -> list:
             namespace=ns,
             output="screen",
             parameters=[str(run.params_file(p.role)), p.params],
+            remappings=[tuple(r) for r in p.remaps],
         )
         for p in run.processes
     }

@@ -65,6 +65,7 @@ class Process:
     params: dict[str, Any] = field(default_factory=dict)  # its own parameters, on top of the file
     args: list[str] = field(default_factory=list)  # arguments of a process that is not a node
     host: int = 0  # the simulated host it runs on (--hosts)
+    remaps: list[tuple[str, str]] = field(default_factory=list)  # ROS remappings (from, to)
 
     def argv(self, run: Run) -> list[str]:
         exe = self.executable if os.path.isabs(self.executable) else str(run.bin_dir / self.executable)
@@ -72,6 +73,8 @@ class Process:
             return [exe, *self.args]
         out = [exe, "--ros-args", "--params-file", str(run.params_file(self.role))]
         out += ["-r", f"__ns:=/{run.config['namespace'].strip('/')}"]
+        for old, new in self.remaps:
+            out += ["-r", f"{old}:={new}"]
         for name, value in self.params.items():
             out += ["-p", f"{name}:={_param_text(value)}"]
         return out
@@ -310,7 +313,11 @@ def _prepare(run: Run, say: Say, owner: int, launch: bool) -> None:
             value = cfg.parameters(AGENT, agent_id=i)[name]
             if value != agent[name]:
                 own[name] = value
-        run.processes.append(Process(f"agent_{i}", "agent_node", AGENT, own, host=slot))
+        remaps = []
+        if cfg["realtime"]:  # on the run's sim time: the world's clock of its namespace
+            own["use_sim_time"] = True
+            remaps = [("/clock", f"/{cfg['namespace'].strip('/')}/clock")]
+        run.processes.append(Process(f"agent_{i}", "agent_node", AGENT, own, host=slot, remaps=remaps))
     if cfg["background"]:
         (d / "background").touch()
 

@@ -267,3 +267,30 @@ def test_ros2_launch_takes_the_options_of_ost_up(domain):
         "hosts:= not in the launch file: simulated hosts are made by ost up"
         in refused.stdout + refused.stderr
     )
+
+
+def test_ros2_action_against_a_realtime_base(tmp_path, procs, domain):
+    """A realtime world serves each robot's base as an action: the real ``ros2 action`` lists it,
+    describes it and sends it a goal (before the run starts the base refuses, saying why)."""
+    path = tmp_path / "s.yaml"
+    path.write_text(dump_scenario(generate_scenario(2, 4, 3, Grid(20, 8), 2)))
+    keys = make_keys(tmp_path, path)
+    procs.start("world", "world_node", "-p", f"scenario:={path}", "-p", "realtime:=true", *keys)
+    procs.wait_for("world", "waiting for 2 agents")
+    name = "/ost/agent_1/follow_cells"
+
+    def listed():
+        out = ros2(domain, "action", "list", "-t").stdout
+        return out if name in out else None
+
+    out = until(listed, f"{name} in ros2 action list")
+    assert f"{name} [ost_msgs/action/FollowCells]" in out and "/ost/agent_0/follow_cells" in out
+    info = ros2(domain, "action", "info", name, "-t")
+    assert info.returncode == 0 and "Action servers: 1" in info.stdout, info.stdout + info.stderr
+    # (ros2action 0.32.2 prints the server's namespace mangled, "//o/s/tworld": its own join)
+    assert "world [ost_msgs/action/FollowCells]" in info.stdout
+    sent = ros2(domain, "action", "send_goal", name, "ost_msgs/action/FollowCells",
+                "{kind: 1, id: 7, state: WAITING}", timeout=90)  # fmt: skip
+    assert sent.returncode == 0, sent.stderr
+    assert "outcome: refused" in sent.stdout and "the run has not started" in sent.stdout, sent.stdout
+    assert "ABORTED" in sent.stdout
