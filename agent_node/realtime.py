@@ -24,6 +24,8 @@ from typing import Any
 from ost_msgs.action import FollowCells
 from ost_msgs.srv import Where
 from rclpy.action import ActionClient
+from rclpy.clock import Clock as RosClock
+from rclpy.clock import ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
@@ -43,7 +45,10 @@ from ost_ros.runconfig import AGENT, ConfigError, RunConfig
 from ost_ros.scenario import ScenarioError, load_scenario, with_team
 from ost_ros.team import TeamInfo
 
-START_S = 0.01  # how often it looks whether its endpoints are matched, before the run
+START_S = 0.05  # how often it looks whether its endpoints are matched, before the run
+# A service answer can be lost while the world's reply writer has not yet matched this client's
+# reader (the request side matched first): the warm-up question is asked again after this long.
+WARM_RETRY_S = 1.0
 
 
 class RealtimeAgentNode(Node):
@@ -95,9 +100,17 @@ class RealtimeAgentNode(Node):
         # where-am-I is answered here then, without a round trip to the world.
         self.idle: tuple[float, tuple[int, int], int, tuple] | None = None
         self.warm: Any = None
-        self.last_goal = 0
+        self.warm_at = 0.0
+        self.created = time.monotonic()
+        # The node's ROS clock is the run's sim time (use_sim_time, /clock); its timers run on the
+        # steady clock, because it extrapolates sim time between clock messages at the run's rtf.
+        self.wall = RosClock(clock_type=ClockType.STEADY_TIME)
+        self.last_goal = 0  # the id of the goal sent last
+        self.accepted = 0  # the latest goal whose acceptance came back
+        self.ended = 0  # the latest goal whose result came back
+        self.ask_at: float | None = None  # a where-am-I held until the goal sent last is accepted
         self._build_endpoints()
-        self.start_timer = self.create_timer(START_S, self.try_ready)
+        self.start_timer = self.create_timer(START_S, self.try_ready, clock=self.wall)
 
     # ------------------------------------------------------------------ endpoints
 
@@ -170,10 +183,18 @@ class RealtimeAgentNode(Node):
     def try_ready(self) -> None:
         if self.ready_sent:
             return
-        if self.lacking():
+        lacking = self.lacking()
+        if lacking:
+            if time.monotonic() - self.created > tp.DISCOVERY_NOTE_S:
+                self.throttle.note(("start", "agent"), f"not ready yet: not matched {lacking[:8]}")
             return
-        if self.warm is None:  # a first call sets up its reply path: not at the run's first decision
-            self.warm = self.where.call_async(Where.Request(at=0.0))
+        wall = time.monotonic()
+        if self.warm is None or (not self.warm.done() and wall - self.warm_at > WARM_RETRY_S):
+            # a first call sets up its reply path: not at the run's first decision
+            if self.warm is not None:
+                self.where.remove_pending_request(self.warm)
+                self.throttle.note(("start", "where"), "where-am-I not answered yet: asking again")
+            self.warm, self.warm_at = self.where.call_async(Where.Request(at=0.0)), wall
             return
         if not self.warm.done():
             return
@@ -222,7 +243,7 @@ class RealtimeAgentNode(Node):
         if self.wake_timer is not None:
             self.destroy_timer(self.wake_timer)
         delay = max(0.0, (t - self.now()) / self.rtf)
-        self.wake_timer = self.create_timer(max(delay, 1e-4), self.on_wake)
+        self.wake_timer = self.create_timer(max(delay, 1e-4), self.on_wake, clock=self.wall)
 
     def on_wake(self) -> None:
         if self.wake_timer is not None:
@@ -295,15 +316,24 @@ class RealtimeAgentNode(Node):
             elif isinstance(o, SendGoal):
                 self.send_goal(o)
             elif isinstance(o, AskFeedback):
-                if self.idle is not None:  # it stands still where its last goal ended: known here
-                    t, cell, gid, sensed = self.idle
-                    fb = Feedback(self.me, max(float(o.at), t), cell, gid, -1, -1, sensed)
-                    self.out(self.rt.on_feedback(fb, self.now()))
-                else:
-                    fut = self.where.call_async(Where.Request(at=float(o.at)))
-                    fut.add_done_callback(self.on_where)
+                self.where_am_i(float(o.at))
             elif isinstance(o, WakeAt):
                 self.arm(o.time)
+
+    def where_am_i(self, at: float) -> None:
+        """Where its base is at ``at``: known here if it stands where its last goal ended; else
+        asked of the world — once the goal sent last is in the world's hands, because the service
+        and the action are separate DDS paths and an answer from before that goal would make the
+        robot decide on a state it has left (and send the same goal twice)."""
+        if self.idle is not None:
+            t, cell, gid, sensed = self.idle
+            fb = Feedback(self.me, max(at, t), cell, gid, -1, -1, sensed)
+            self.out(self.rt.on_feedback(fb, self.now()))
+        elif self.accepted < self.last_goal:
+            self.ask_at = at  # asked when the goal's acceptance comes back (on_accepted)
+        else:
+            fut = self.where.call_async(Where.Request(at=at))
+            fut.add_done_callback(functools.partial(self.on_where, at))
 
     def publish(self, payload: Envelope | Mark | Need) -> None:
         if isinstance(payload, Envelope):
@@ -337,6 +367,10 @@ class RealtimeAgentNode(Node):
 
     def on_accepted(self, gid: int, fut) -> None:
         handle = fut.result()
+        self.accepted = max(self.accepted, gid)
+        if self.ask_at is not None and self.accepted >= self.last_goal:
+            at, self.ask_at = self.ask_at, None
+            self.where_am_i(at)
         if not handle.accepted:
             self.on_goal_result(gid, None)
             return
@@ -344,6 +378,7 @@ class RealtimeAgentNode(Node):
 
     def on_goal_result(self, gid: int, res) -> None:
         self.goal_kind.pop(gid, None)
+        self.ended = max(self.ended, gid)
         if not self.started or self.report_sent:
             return
         if res is None:
@@ -368,9 +403,13 @@ class RealtimeAgentNode(Node):
             obj, group = self.goal_kind[gid]
             self.out(self.rt.on_carry(CarryStarted(obj, group, fb.t), self.now()))
 
-    def on_where(self, fut) -> None:
+    def on_where(self, at: float, fut) -> None:
         r = fut.result()
         if r is None or not self.started or self.report_sent:
+            return
+        if r.goal < self.last_goal and self.ended < self.last_goal and self.idle is None:
+            # the world had not begun the goal sent last (accepted, not yet executed): again
+            self.where_am_i(at)
             return
         sensed = tuple(wire.from_ros_value(ObjectInfo, o, "where.sensed") for o in r.sensed)
         fb = Feedback(self.me, r.time, (r.cell.x, r.cell.y), r.goal, r.index, r.carrying, sensed)
