@@ -50,6 +50,8 @@ def values(field_type: str):
         return ints(field_type)
     if field_type == "boolean":
         return st.booleans()
+    if field_type in ("double", "float"):  # NaN and the infinities too
+        return st.floats(width=64 if field_type == "double" else 32)
     if field_type == "string":
         return TEXT
     if field_type.startswith("sequence<"):

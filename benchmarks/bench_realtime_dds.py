@@ -1,0 +1,116 @@
+"""Realtime runs over DDS (``ost up --realtime``), measured against the lockstep and ``ost sim``:
+
+    flock /tmp/ost-dds.lock .venv/bin/python benchmarks/bench_realtime_dds.py \\
+        [--rtf 100,300,1000,3000] [--agents 10] [--objects 20] [--seeds 1] [--large] [--out DIR]
+
+For each real-time factor (sim steps per wall second) it starts one world node and one process
+per robot with ``ost up --realtime --rtf R`` and reads the run's ``result.json``: every object
+delivered, disagreements between the robots' coordination digests (must be 0), the makespan
+against ``ost sim``'s on the same scenario, the largest lag (how many sim steps after its stamp a
+batch of messages was processed; ≤ 1 means the network keeps up with the pace), the wall time of
+the run and of the bring-up, and the CPU seconds of every process (the children's rusage). The
+lockstep over DDS (``ost up`` without --realtime) is measured on the same scenario for reference.
+--large adds N=50, M=200 at rtf 300 and 1000.
+
+Writes ``realtime_dds.md`` (a markdown table) into --out (default /tmp/ost_bench_realtime_dds).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+OST = str(Path(sys.executable).parent / "ost")
+
+
+def children_cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def sim_makespan(scenario: Path) -> float:
+    out = subprocess.run([OST, "sim", str(scenario), "--json"], check=True, capture_output=True, text=True)
+    return float(json.loads(out.stdout)["makespan"])
+
+
+def run_up(agents: int, objects: int, seed: int, rtf: float | None, nmax: int) -> dict:
+    """One ``ost up`` run; its result with the wall and CPU seconds it took."""
+    d = Path(tempfile.mkdtemp(prefix="ost-bench-rt-"))
+    cmd = [OST, "up", "--agents", str(agents), "--objects", str(objects), "--seed", str(seed)]
+    cmd += ["--nmax", str(nmax), "--run-dir", str(d / "run")]
+    if rtf is not None:
+        cmd += ["--realtime", "--rtf", f"{rtf:g}"]
+    cpu0, t0 = children_cpu(), time.monotonic()
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    wall, cpu = time.monotonic() - t0, children_cpu() - cpu0
+    if proc.returncode != 0:
+        tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
+        raise SystemExit(f"bench_realtime_dds: ost up failed ({' | '.join(tail)}); logs in {d}")
+    res = json.loads((d / "run" / "result.json").read_text())
+    res["_wall"], res["_cpu"], res["_scenario"] = wall, cpu, d / "run" / "scenario.yaml"
+    return res
+
+
+def row(label: str, res: dict, ref: float) -> str:
+    delivered = sum(o["delivered"] is not None for o in res["objects"])
+    lag = max(res.get("lag", {}).values(), default=0.0)
+    dis = res.get("disagreements", 0)
+    comp = res.get("coordinations_compared", 0)
+    return (
+        f"| {label} | {delivered}/{len(res['objects'])} | {dis} / {comp} | {res['makespan']:.0f} "
+        f"| {100 * (res['makespan'] / ref - 1):+.1f} % | {lag:.1f} | {res['_wall']:.1f} "
+        f"| {res.get('bring_up_s', float('nan')):.1f} | {res['_cpu']:.1f} |"
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rtf", default="100,300,1000,3000", help="real-time factors, comma-separated")
+    ap.add_argument("--agents", type=int, default=10)
+    ap.add_argument("--objects", type=int, default=20)
+    ap.add_argument("--nmax", type=int, default=10)
+    ap.add_argument("--seeds", type=int, default=1, help="scenario seeds 1..K")
+    ap.add_argument("--large", action="store_true", help="also N=50, M=200 at rtf 300 and 1000")
+    ap.add_argument("--out", type=Path, default=Path("/tmp/ost_bench_realtime_dds"))
+    a = ap.parse_args(argv)
+    try:
+        rtfs = [float(x) for x in a.rtf.split(",")]
+    except ValueError:
+        print(f"bench_realtime_dds: error: --rtf: not a list of numbers: {a.rtf!r}", file=sys.stderr)
+        return 2
+    head = [
+        "| run | delivered | disagreements / coordinations | makespan | vs ost sim | largest lag "
+        "(steps) | wall (s) | bring-up (s) | CPU (s) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    cases = [(a.agents, a.objects, a.nmax, rtfs)]
+    if a.large:
+        cases.append((50, 200, 10, [300.0, 1000.0]))
+    lines = [f"machine: {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f} at start", ""]
+    for n, m, nmax, rs in cases:
+        for seed in range(1, a.seeds + 1):
+            lines += [f"N={n}, M={m}, seed {seed}, 500x200, CCP CI=1", "", *head]
+            lock = run_up(n, m, seed, None, nmax)
+            ref = sim_makespan(lock["_scenario"])
+            lines.append(row("lockstep", lock, ref))
+            print(lines[-1], flush=True)
+            for r in rs:
+                lines.append(row(f"realtime rtf {r:g}", run_up(n, m, seed, r, nmax), ref))
+                print(lines[-1], flush=True)
+            lines.append("")
+    a.out.mkdir(parents=True, exist_ok=True)
+    (a.out / "realtime_dds.md").write_text("\n".join(lines) + "\n")
+    print(f"wrote {a.out / 'realtime_dds.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
