@@ -49,6 +49,7 @@ from ost_ros.lockstep.world import result_from_reports
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
 from ost_ros.node.params import ParameterError, declare_role
+from ost_ros.node.run import process_age
 from ost_ros.node.signing import node_auth
 from ost_ros.realtime.messages import Digest, Mark
 from ost_ros.realtime.world import (
@@ -229,7 +230,7 @@ class RealtimeWorldNode(Node):
             return
         self.started = True
         self.t0 = time.monotonic()
-        self.bring_up_s = _process_age()
+        self.bring_up_s = process_age()
         self.get_logger().info(f"all {n} agents ready; sim time 0 (rtf {self.rtf:g})")
         self.publish_clock(0.0)
         _write(self.p["ready_file"], f"{self.bring_up_s or 0.0:.3f}\n", self)
@@ -505,9 +506,3 @@ def _write(path: str, text: str, node: Node) -> None:
         Path(tmp).replace(path)
     except OSError as exc:
         node.get_logger().warning(f"cannot write {path} ({exc.strerror})")
-
-
-def _process_age() -> float | None:
-    from world_node.world_node import process_age
-
-    return process_age()

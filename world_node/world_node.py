@@ -44,7 +44,7 @@ from ost_ros.lockstep.messages import Acted, AgentReport, Ready, RunEnd, RunInfo
 from ost_ros.lockstep.world import ProtocolViolation, WorldRuntime
 from ost_ros.node import transport as tp
 from ost_ros.node.params import ParameterError, declare_role, realtime_from_args
-from ost_ros.node.run import run_node
+from ost_ros.node.run import process_age, run_node
 from ost_ros.node.signing import node_auth
 from ost_ros.runconfig import WORLD
 from ost_ros.scenario import ScenarioError, dump_scenario, load_scenario, with_team
@@ -528,17 +528,6 @@ class WorldNode(Node):
             for reason, n in zip(auth.REASONS, r.dropped):
                 total[reason] += n
         return total
-
-
-def process_age() -> float | None:
-    """Seconds since this process started (Linux /proc; None elsewhere): the world starts with
-    the agents, so at the run's start this is the bring-up (processes up, discovery done)."""
-    try:
-        uptime = float(Path("/proc/uptime").read_text().split()[0])
-        start = int(Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()[19])
-        return uptime - start / os.sysconf("SC_CLK_TCK")
-    except (OSError, ValueError, IndexError):
-        return None
 
 
 def main(args=None) -> int:

@@ -5,8 +5,10 @@ and a teardown that never hangs."""
 from __future__ import annotations
 
 import faulthandler
+import os
 import sys
 from collections.abc import Callable
+from pathlib import Path
 
 import rclpy
 from rclpy.exceptions import ParameterException
@@ -100,3 +102,14 @@ def run_node[N: Node](
             node.destroy_node()
         rclpy.try_shutdown()
     return status
+
+
+def process_age() -> float | None:
+    """Seconds since this process started (Linux /proc; None elsewhere): the world starts with
+    the agents, so at the run's start this is the bring-up (processes up, discovery done)."""
+    try:
+        uptime = float(Path("/proc/uptime").read_text().split()[0])
+        start = int(Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()[19])
+        return uptime - start / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return None
