@@ -31,11 +31,9 @@ from ost_ros.lockstep.agent import AgentRuntime, ProtocolViolation
 from ost_ros.lockstep.messages import Acted, AgentReport, Ready, Resend, RunEnd, Sample, Tick
 from ost_ros.model import Scenario
 from ost_ros.node import transport as tp
-from ost_ros.node.params import ParameterError, declare_role, param_from_args, realtime_from_args
+from ost_ros.node.params import ParameterError, declare_agent, param_from_args, realtime_from_args
 from ost_ros.node.run import run_node
 from ost_ros.node.signing import node_auth
-from ost_ros.runconfig import AGENT, ConfigError, RunConfig
-from ost_ros.scenario import ScenarioError, load_scenario, with_team
 from ost_ros.team import TeamInfo
 
 # Without the world for this long after the start, the agent gives up (it would wait forever).
@@ -59,26 +57,9 @@ class AgentNode(Node):
 def load_agent(node: Node) -> tuple[Scenario, CoordinationPolicy, AgentRuntime]:
     """Declare and check the parameters (the run configuration's agent settings); the runtime
     around the core agent."""
-    p = declare_role(node, AGENT)
-    if p["agent_id"] < 0:
-        raise ParameterError("agent_id: must be set to a non-negative id (-p agent_id:=N)")
-    if not p["scenario"]:
-        raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
-    cfg = RunConfig.of(p)
-    try:
-        scenario = load_scenario(p["scenario"])
-        if p["agents"]:
-            scenario = with_team(scenario, p["agents"])
-    except ScenarioError as exc:
-        raise ParameterError(f"scenario: {exc}") from None
-    try:
-        spec = cfg.check_protocol(scenario)
-    except ConfigError as exc:
-        raise ParameterError(f"protocol: {exc}") from None
+    p, cfg, scenario, spec = declare_agent(node)
     policy, settings = cfg.policy(), cfg.protocol_settings()
     ids = tuple(a.id for a in scenario.agents)
-    if p["agent_id"] not in ids:
-        raise ParameterError(f"agent_id: {p['agent_id']} is not in the scenario's team {list(ids)}")
     agent = spec.make_agent(p["agent_id"], TeamInfo.from_scenario(scenario), policy, settings)
     if p["mute_negotiation_from"] >= 0 and spec.silence is not None:
         # fault injection (tests, demos): this negotiator stops answering from that step on

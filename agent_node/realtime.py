@@ -31,18 +31,17 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from ost_msgs_py import wire
+from ost_msgs_py.wire import MessageError
 from ost_ros.lockstep.messages import AgentReport, Ready, RunEnd, Sample, ScheduleEntry
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
-from ost_ros.node.params import ParameterError, declare_role
+from ost_ros.node.params import declare_agent
 from ost_ros.node.signing import node_auth
 from ost_ros.realtime.agent import AskFeedback, Output, Publish, RealtimeAgent, SendGoal, WakeAt
 from ost_ros.realtime.messages import Digest, Envelope, Lost, Mark, Need, ObjectInfo
 from ost_ros.realtime.run import make_agent
 from ost_ros.realtime.stamps import LateMessage
 from ost_ros.realtime.world import Carry, CarryStarted, Detection, Feedback, Follow, GoalResult, Stand
-from ost_ros.runconfig import AGENT, ConfigError, RunConfig
-from ost_ros.scenario import ScenarioError, load_scenario, with_team
 from ost_ros.team import TeamInfo
 
 START_S = 0.05  # how often it looks whether its endpoints are matched, before the run
@@ -56,26 +55,9 @@ class RealtimeAgentNode(Node):
 
     def __init__(self, name: str = "agent"):
         super().__init__(name, namespace=tp.NAMESPACE)
-        p = declare_role(self, AGENT)
-        if p["agent_id"] < 0:
-            raise ParameterError("agent_id: must be set to a non-negative id (-p agent_id:=N)")
-        if not p["scenario"]:
-            raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
-        cfg = RunConfig.of(p)
-        try:
-            scenario = load_scenario(p["scenario"])
-            if p["agents"]:
-                scenario = with_team(scenario, p["agents"])
-        except ScenarioError as exc:
-            raise ParameterError(f"scenario: {exc}") from None
-        try:
-            cfg.check_protocol(scenario)
-        except ConfigError as exc:
-            raise ParameterError(f"protocol: {exc}") from None
+        p, cfg, scenario, _spec = declare_agent(self)
         ids = tuple(a.id for a in scenario.agents)
         me = p["agent_id"]
-        if me not in ids:
-            raise ParameterError(f"agent_id: {me} is not in the scenario's team {list(ids)}")
         self.me, self.ids, self.p = me, ids, p
         self.rt: RealtimeAgent = make_agent(
             TeamInfo.from_scenario(scenario), me, p["protocol"], cfg.policy(), cfg.protocol_settings()
@@ -108,7 +90,9 @@ class RealtimeAgentNode(Node):
         self.last_goal = 0  # the id of the goal sent last
         self.accepted = 0  # the latest goal whose acceptance came back
         self.ended = 0  # the latest goal whose result came back
-        self.ask_at: float | None = None  # a where-am-I held until the goal sent last is accepted
+        self.ask_at: float | None = None  # a where-am-I held (until an acceptance or a result)
+        self.follow_end: dict[int, tuple[int, tuple[int, int]]] = {}  # FOLLOW id -> (cells, last)
+        self.said = {"messages": 0, "marks": 0, "needs": 0}  # what it published (the report's log line)
         self._build_endpoints()
         self.start_timer = self.create_timer(START_S, self.try_ready, clock=self.wall)
 
@@ -284,11 +268,25 @@ class RealtimeAgentNode(Node):
     def on_lost(self, msg) -> None:
         if msg.run == self.run:
             m = tp.from_ros_or_warn(msg, self.sub_lost.topic_name, self.throttle, self.guard)
-            if m is not None:
+            if m is not None and m.agent == self.me:
+                self.declared_failed(m)
+            elif m is not None:
                 self.take(m)
 
+    def declared_failed(self, notice: Lost) -> None:
+        """The world has declared this robot failed (its liveliness lapsed: a lossy link, a stall
+        longer than the lease) and stopped its base; the team has re-planned without it from
+        batch ``notice.t`` on. It cannot take part again: it leaves (exit code 1)."""
+        if self.done:
+            return
+        self.get_logger().error(
+            f"declared failed by the world at sim time {notice.t} (no liveliness for 2 x "
+            f"{self.p['failure_timeout']:g} s; a longer --failure-timeout suits a lossy link): leaving"
+        )
+        self.exit_code, self.done = 1, True
+
     def take(self, payload: Envelope | Mark | Need | Lost) -> None:
-        if self.started and not self.report_sent:
+        if self.started and not self.report_sent and not self.done:
             try:
                 self.out(self.rt.on_message(payload, self.now()))
             except LateMessage as exc:  # a peer broke its watermark: said, never a crash
@@ -340,10 +338,13 @@ class RealtimeAgentNode(Node):
             kind = type(payload.message)
             sample = Sample(payload.message, payload.stamp, payload.seq, self.run)
             self.guard.publish(self.kind_pubs[kind], wire.to_ros(sample))
+            self.said["messages"] += 1
         elif isinstance(payload, Mark):
             self.guard.publish(self.pub_marks, wire.to_ros(payload, run=self.run))
+            self.said["marks"] += 1
         else:
             self.guard.publish(self.pub_needs, wire.to_ros(payload, run=self.run))
+            self.said["needs"] += 1
 
     def send_goal(self, o: SendGoal) -> None:
         self.last_goal = o.id
@@ -356,6 +357,7 @@ class RealtimeAgentNode(Node):
         if isinstance(o.goal, Follow):
             g.kind = FollowCells.Goal.FOLLOW
             g.path = [wire.to_ros_cell(c) for c in o.goal.path]
+            self.follow_end[o.id] = (len(o.goal.path), o.goal.path[-1])
         elif isinstance(o.goal, Carry):
             g.kind, g.object, g.group = FollowCells.Goal.CARRY, o.goal.object, list(o.goal.group)
             self.goal_kind[o.id] = (o.goal.object, o.goal.group)
@@ -378,6 +380,7 @@ class RealtimeAgentNode(Node):
 
     def on_goal_result(self, gid: int, res) -> None:
         self.goal_kind.pop(gid, None)
+        self.follow_end.pop(gid, None)
         self.ended = max(self.ended, gid)
         if not self.started or self.report_sent:
             return
@@ -386,6 +389,7 @@ class RealtimeAgentNode(Node):
                 self.me, gid, "refused", self.now(), (0, 0), "REJECTED", "the base rejected the goal"
             )
         else:
+            self.late_detections(res.detections)
             outcome, code = res.outcome, res.code
             if outcome == "preempted" and gid == self.last_goal:  # not by itself: another client's goal
                 outcome, code = "aborted", "PREEMPTED"
@@ -396,6 +400,20 @@ class RealtimeAgentNode(Node):
         if os.environ.get("OST_RT_DEBUG"):
             self.get_logger().info(f"t={self._now:.1f} result {r}")
         self.out(self.rt.on_result(r, self.now()))
+        if self.ask_at is not None and self.ended >= self.last_goal:  # held for this result
+            at, self.ask_at = self.ask_at, None
+            self.where_am_i(at)
+
+    def late_detections(self, msgs) -> None:
+        """The detections a goal result repeats, before the result itself: one still missing from
+        the detections topic is taken now (it is news only once, whichever path comes first)."""
+        for m in msgs:
+            try:
+                d = wire.from_ros_value(Detection, m, "result.detections")
+            except MessageError as exc:
+                self.throttle.warn(rtp.follow_action(self.me), "a goal result", str(exc))
+                continue
+            self.out(self.rt.on_detection(d, self.now()))
 
     def on_feedback(self, gid: int, msg) -> None:
         fb = msg.feedback
@@ -407,7 +425,18 @@ class RealtimeAgentNode(Node):
         r = fut.result()
         if r is None or not self.started or self.report_sent:
             return
-        if r.goal < self.last_goal and self.ended < self.last_goal and self.idle is None:
+        if self.idle is not None:
+            # the last goal's result came in the meantime (another DDS path): it says where the
+            # robot stands; this answer may be from before it (mid-carry, an object since delivered)
+            self.where_am_i(at)
+            return
+        end = self.follow_end.get(int(r.goal)) if r.goal == self.last_goal else None
+        if end is not None and (r.index >= end[0] - 1 or (r.index < 0 and (r.cell.x, r.cell.y) == end[1])):
+            # at (or bound for) its path's last cell: the goal's result decides, not this answer
+            # — the result repeats the goal's detections, and a sweep must not end before them
+            self.ask_at = at
+            return
+        if r.goal < self.last_goal and self.ended < self.last_goal:
             # the world had not begun the goal sent last (accepted, not yet executed): again
             self.where_am_i(at)
             return
@@ -439,6 +468,11 @@ class RealtimeAgentNode(Node):
             lag=float(self.rt.max_lag),
         )
         self.guard.publish(self.pub_report, wire.to_ros(report))
+        said = ", ".join(f"{n} {what}" for what, n in self.said.items())
+        self.get_logger().info(
+            f"report sent: published {said}; took {len(self.rt.processed)} batches; "
+            f"largest lag {self.rt.max_lag:.1f} steps"
+        )
 
     def on_result(self, _msg: String) -> None:
         if self.report_sent:

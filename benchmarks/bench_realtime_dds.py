@@ -1,7 +1,8 @@
 """Realtime runs over DDS (``ost up --realtime``), measured against the lockstep and ``ost sim``:
 
     flock /tmp/ost-dds.lock .venv/bin/python benchmarks/bench_realtime_dds.py \\
-        [--rtf 100,300,1000,3000] [--agents 10] [--objects 20] [--seeds 1] [--large] [--out DIR]
+        [--rtf 100,300,1000,3000] [--agents 10] [--objects 20] [--seeds 1] [--clock-hz HZ]
+        [--large] [--large-rtf 20,100] [--out DIR]
 
 For each real-time factor (sim steps per wall second) it starts one world node and one process
 per robot with ``ost up --realtime --rtf R`` and reads the run's ``result.json``: every object
@@ -11,7 +12,8 @@ batch of messages was processed; ≤ 1 means the network keeps up with the pace)
 the run and of the bring-up, and the CPU seconds of every process (the children's rusage). The
 lockstep over DDS (``ost up`` without --realtime) is measured on the same scenario for reference
 (up to --lockstep-max agents: at N=50 it takes minutes).
---large adds N=50, M=200 at rtf 300 and 1000.
+--large adds N=50, M=200 at the --large-rtf factors (on two cores a team of 51 processes keeps up
+with rtf 20 at most: docs/realtime.md).
 
 Writes ``realtime_dds.md`` (a markdown table) into --out (default /tmp/ost_bench_realtime_dds).
 """
@@ -42,13 +44,17 @@ def sim_makespan(scenario: Path) -> float:
     return float(json.loads(out.stdout)["makespan"])
 
 
-def run_up(agents: int, objects: int, seed: int, rtf: float | None, nmax: int) -> dict:
+def run_up(
+    agents: int, objects: int, seed: int, rtf: float | None, nmax: int, clock_hz: float | None = None
+) -> dict:
     """One ``ost up`` run; its result with the wall and CPU seconds it took."""
     d = Path(tempfile.mkdtemp(prefix="ost-bench-rt-"))
     cmd = [OST, "up", "--agents", str(agents), "--objects", str(objects), "--seed", str(seed)]
     cmd += ["--nmax", str(nmax), "--run-dir", str(d / "run")]
     if rtf is not None:
         cmd += ["--realtime", "--rtf", f"{rtf:g}"]
+        if clock_hz is not None:
+            cmd += ["--clock-hz", f"{clock_hz:g}"]
     cpu0, t0 = children_cpu(), time.monotonic()
     proc = subprocess.run(cmd, capture_output=True, text=True)
     wall, cpu = time.monotonic() - t0, children_cpu() - cpu0
@@ -79,7 +85,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--objects", type=int, default=20)
     ap.add_argument("--nmax", type=int, default=10)
     ap.add_argument("--seeds", type=int, default=1, help="scenario seeds 1..K")
-    ap.add_argument("--large", action="store_true", help="also N=50, M=200 at rtf 300 and 1000")
+    ap.add_argument("--clock-hz", type=float, default=None, help="the world's clock rate (ost up's default)")
+    ap.add_argument("--large", action="store_true", help="also N=50, M=200 (at --large-rtf)")
+    ap.add_argument("--large-rtf", default="20,100", help="real-time factors of the N=50 runs")
     ap.add_argument(
         "--lockstep-max", type=int, default=10, help="the lockstep reference only up to this many agents"
     )
@@ -87,8 +95,9 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     try:
         rtfs = [float(x) for x in a.rtf.split(",")]
+        large = [float(x) for x in a.large_rtf.split(",")]
     except ValueError:
-        print(f"bench_realtime_dds: error: --rtf: not a list of numbers: {a.rtf!r}", file=sys.stderr)
+        print(f"bench_realtime_dds: error: --rtf/--large-rtf: not a list of numbers: {a.rtf!r}, {a.large_rtf!r}", file=sys.stderr)  # fmt: skip
         return 2
     head = [
         "| run | delivered | disagreements / coordinations | makespan | vs ost sim | largest lag "
@@ -97,8 +106,9 @@ def main(argv: list[str] | None = None) -> int:
     ]
     cases = [(a.agents, a.objects, a.nmax, rtfs)]
     if a.large:
-        cases.append((50, 200, 10, [300.0, 1000.0]))
-    lines = [f"machine: {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f} at start", ""]
+        cases.append((50, 200, 10, large))
+    clock = "ost up's default" if a.clock_hz is None else f"{a.clock_hz:g} Hz"
+    lines = [f"machine: {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f} at start; clock {clock}", ""]
     for n, m, nmax, rs in cases:
         for seed in range(1, a.seeds + 1):
             lines += [f"N={n}, M={m}, seed {seed}, 500x200, CCP CI=1", "", *head]
@@ -109,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
                 lines.append(row("lockstep", lock, ref))
                 print(lines[-1], flush=True)
             for r in rs:
-                res = run_up(n, m, seed, r, nmax)
+                res = run_up(n, m, seed, r, nmax, a.clock_hz)
                 ref = ref if ref is not None else sim_makespan(res["_scenario"])
                 lines.append(row(f"realtime rtf {r:g}", res, ref))
                 print(lines[-1], flush=True)

@@ -28,7 +28,6 @@ import functools
 import json
 import math
 import time
-from pathlib import Path
 from typing import Any
 
 from builtin_interfaces.msg import Time
@@ -49,7 +48,7 @@ from ost_ros.lockstep.world import result_from_reports
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
 from ost_ros.node.params import ParameterError, declare_role
-from ost_ros.node.run import process_age
+from ost_ros.node.run import process_age, write_file
 from ost_ros.node.signing import node_auth
 from ost_ros.realtime.messages import Digest, Mark
 from ost_ros.realtime.world import (
@@ -121,6 +120,10 @@ class RealtimeWorldNode(Node):
         self.messages = 0
         self.goals: dict[tuple[int, int], tuple[Future, Any, Any]] = {}  # (agent, goal id) -> ...
         self.carrying: dict[int, tuple[int, Any]] = {}  # agent -> (object, goal handle) of its carry
+        # agent -> its detections since its last goal result: the next result repeats them (a
+        # sample lost on the detections topic is repaired by DDS, late; the robot may have ended
+        # its search by then, so its finds must not hang on that repair alone)
+        self.detections: dict[int, list[Any]] = {}
         self._build_endpoints(p)
         self.timer = self.create_timer(TIMER_S, self.on_timer)
         self.get_logger().info(
@@ -273,6 +276,7 @@ class RealtimeWorldNode(Node):
         res = FollowCells.Result()
         res.outcome, res.code, res.reason, res.t = r.outcome, r.code, r.reason, float(r.time)
         res.cell.x, res.cell.y = r.cell
+        res.detections = self.detections.pop(r.agent, [])
         if r.outcome in (REACHED, ABORTED) and r.agent in self.live:  # it stands there, idle
             res.sensed = [wire.to_ros(o) for o in self.world.feedback(r.agent, float(r.time)).sensed]
         fut.set_result(res)
@@ -341,6 +345,7 @@ class RealtimeWorldNode(Node):
         elif isinstance(ev, Detection):
             if ev.agent in self.live:
                 self.guard.publish(self.pub_det[ev.agent], wire.to_ros(ev, run=self.run))
+                self.detections.setdefault(ev.agent, []).append(wire.to_ros(ev, run=self.run))
         elif isinstance(ev, CarryStarted):
             for j in ev.group:
                 obj, handle = self.carrying.get(j, (None, None))
@@ -482,7 +487,7 @@ class RealtimeWorldNode(Node):
         text = json.dumps(data, indent=1)
         if self.p["result_file"]:
             try:
-                Path(self.p["result_file"]).write_text(text + "\n")
+                write_file(self.p["result_file"], text + "\n")
             except OSError as exc:
                 self.get_logger().error(f"result_file: cannot write {self.p['result_file']} ({exc.strerror})")
         self.pub_result.publish(String(data=text))
@@ -500,9 +505,7 @@ class RealtimeWorldNode(Node):
 def _write(path: str, text: str, node: Node) -> None:
     if not path:
         return
-    tmp = f"{path}.tmp"
     try:
-        Path(tmp).write_text(text)
-        Path(tmp).replace(path)
+        write_file(path, text)
     except OSError as exc:
         node.get_logger().warning(f"cannot write {path} ({exc.strerror})")

@@ -44,7 +44,7 @@ from ost_ros.lockstep.messages import Acted, AgentReport, Ready, RunEnd, RunInfo
 from ost_ros.lockstep.world import ProtocolViolation, WorldRuntime
 from ost_ros.node import transport as tp
 from ost_ros.node.params import ParameterError, declare_role, realtime_from_args
-from ost_ros.node.run import process_age, run_node
+from ost_ros.node.run import process_age, run_node, write_file
 from ost_ros.node.signing import node_auth
 from ost_ros.runconfig import WORLD
 from ost_ros.scenario import ScenarioError, dump_scenario, load_scenario, with_team
@@ -380,10 +380,8 @@ class WorldNode(Node):
         """A signal file for whoever supervises the run, replaced at once (tmp + rename)."""
         if not path:
             return
-        tmp = f"{path}.tmp"
         try:
-            Path(tmp).write_text(text)
-            os.replace(tmp, path)
+            write_file(path, text)
         except OSError as exc:
             self.throttle.note((what, "world"), f"{what}: cannot write ({exc.strerror})")
 
@@ -493,7 +491,7 @@ class WorldNode(Node):
         text = json.dumps(result.to_dict(), indent=1)
         if self.result_file:
             try:
-                Path(self.result_file).write_text(text + "\n")
+                write_file(self.result_file, text + "\n")
             except OSError as exc:
                 self.get_logger().error(f"result_file: cannot write {self.result_file} ({exc.strerror})")
         self.pub_result.publish(String(data=text))

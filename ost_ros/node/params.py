@@ -71,6 +71,35 @@ def declare_role(node: Node, role: str) -> dict[str, Any]:
     return values
 
 
+def declare_agent(node: Node) -> tuple[dict[str, Any], Any, Any, Any]:
+    """An agent node's settings (lockstep or realtime), declared and checked: (the values, their
+    :class:`~ost_ros.runconfig.RunConfig`, the scenario with the run's team, the protocol's
+    :class:`~ost_ros.protocols.ProtocolSpec`). A missing or bad one is a :class:`ParameterError`."""
+    from ost_ros.runconfig import AGENT, ConfigError, RunConfig
+    from ost_ros.scenario import ScenarioError, load_scenario, with_team
+
+    p = declare_role(node, AGENT)
+    if p["agent_id"] < 0:
+        raise ParameterError("agent_id: must be set to a non-negative id (-p agent_id:=N)")
+    if not p["scenario"]:
+        raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
+    cfg = RunConfig.of(p)
+    try:
+        scenario = load_scenario(p["scenario"])
+        if p["agents"]:
+            scenario = with_team(scenario, p["agents"])
+    except ScenarioError as exc:
+        raise ParameterError(f"scenario: {exc}") from None
+    try:
+        spec = cfg.check_protocol(scenario)
+    except ConfigError as exc:
+        raise ParameterError(f"protocol: {exc}") from None
+    ids = [a.id for a in scenario.agents]
+    if p["agent_id"] not in ids:
+        raise ParameterError(f"agent_id: {p['agent_id']} is not in the scenario's team {ids}")
+    return p, cfg, scenario, spec
+
+
 def param_from_args(argv: list[str], name: str) -> Any:
     """Parameter ``name`` as a node's ROS arguments set it — ``-p``/``--param name:=V`` or a
     ``--params-file`` (the last assignment wins, as in rcl) — as text or the file's value; None

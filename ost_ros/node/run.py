@@ -87,7 +87,14 @@ def run_node[N: Node](
         # every call).
         ex = executor(node, executor_name(node))
         while rclpy.ok() and not done(node):
-            ex.spin_once(timeout_sec=0.5)
+            try:
+                ex.spin_once(timeout_sec=0.5)
+            except Exception:
+                if rclpy.ok():
+                    raise
+                # a signal shut the context down between the check and the wait (the wait set
+                # then fails to build): an external shutdown, not a fault
+                raise ExternalShutdownException() from None
         status = code(node)
     except bad_input as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
@@ -113,3 +120,11 @@ def process_age() -> float | None:
         return uptime - start / os.sysconf("SC_CLK_TCK")
     except (OSError, ValueError, IndexError):
         return None
+
+
+def write_file(path: str, text: str) -> None:
+    """A file the run's supervisor polls (ready, progress, result), replaced at once (tmp +
+    rename): a reader never sees half of it. OSError is the caller's to report."""
+    tmp = f"{path}.tmp"
+    Path(tmp).write_text(text)
+    os.replace(tmp, path)

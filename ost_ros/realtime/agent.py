@@ -266,9 +266,10 @@ class RealtimeAgent:
             self.goal, self._sweep, self._carry_started = None, None, -1
             if res.code == "MEMBER_FAILED" and self.agent.current is not None:
                 self._blocked = self.agent.current.object  # until the comm hears of the failure
-            elif res.code in ("START", "PREEMPTED"):
-                # planned from a stale feedback, or another client took its base over (an
-                # operator's goal): look again, decide again
+            elif res.code in ("START", "PREEMPTED", "DELIVERED"):
+                # planned from a stale feedback (over DDS an answer from mid-carry can come after
+                # the carry's result: the object is delivered), or another client took its base
+                # over (an operator's goal): look again, decide again
                 self._decided = -1.0
                 self._decide_at(now, now)
             elif res.outcome == REFUSED:

@@ -233,3 +233,17 @@ def reference(scenario, protocol: str, policy, settings=None, failures=None) -> 
 
 def result_json(stdout: str) -> dict:
     return json.loads(stdout)
+
+
+def kept_its_promise(result: dict, scenario_objects: int) -> None:
+    """What a realtime run promises: every object delivered by exactly the group every robot
+    scheduled, 0 disagreements, a lag reported for every robot."""
+    assert result["mode"] == "realtime" and result["completed"], result.get("error")
+    assert result["disagreements"] == 0 and result["agreement"]
+    assert len(result["objects"]) == scenario_objects
+    for o in result["objects"]:
+        assert o["delivered"] is not None
+    groups = {e["object"]: e["agents"] for e in result["schedule"]}
+    for o in result["objects"]:  # carried by exactly the group every robot scheduled
+        assert sorted(o["agents"]) == sorted(groups[o["id"]])
+    assert set(result["lag"]) == {str(a["id"]) for a in result["agents"]}

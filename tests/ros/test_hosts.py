@@ -2,7 +2,8 @@
 sim_hosts.sh): the world and the agents on K = 3 simulated hosts with their own IPs give exactly
 the single-host run (= ``ost sim``) — with default multicast discovery, with multicast blocked
 and ROS_STATIC_PEERS or a Fast DDS discovery server instead, and with 20 % of every packet each
-host sends dropped (nftables ``numgen``)."""
+host sends dropped (nftables ``numgen``); and a realtime run on lossy hosts keeps the protocol's
+promise."""
 
 import os
 import shutil
@@ -13,7 +14,7 @@ import pytest
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
 from ost_ros.scenario import dump_scenario, generate_scenario
-from tests.ros.dds_helpers import REPO, ost_up, reference, result_json
+from tests.ros.dds_helpers import REPO, kept_its_promise, ost_up, reference, result_json
 
 ROOT = os.geteuid() == 0
 NFT = shutil.which("nft") is not None
@@ -72,6 +73,27 @@ def test_twenty_percent_loss_on_every_host(tmp_path, protocol):
     got, expected, err = run_on_hosts(tmp_path, "--loss", "20", protocol=protocol)
     assert got == expected
     assert "loss 20 %" in err
+
+
+@pytest.mark.skipif(not NFT, reason="nft (Debian package nftables) is needed to drop packets")
+def test_a_realtime_run_on_lossy_hosts_keeps_the_promise(tmp_path):
+    """No barrier and no Resend: reliable DDS repairs what is lost (the hosts' profile has a
+    100 ms heartbeat), so a lossy link costs time, never the agreement. The liveliness lease is
+    longer than the default 1 s: at 20 % loss a live robot's assertions can lapse for 2 s and the
+    world would declare it failed (the robot then leaves, and an object needing all four is
+    stranded)."""
+    scenario = generate_scenario(4, 8, 1, Grid(30, 12), 4)
+    path = tmp_path / "s.yaml"
+    path.write_text(dump_scenario(scenario))
+    run = ost_up(
+        "--scenario", str(path), "--realtime", "--rtf", "20", "--hosts", "3", "--loss", "20",
+        "--failure-timeout", "5", "--json", "--run-dir", str(tmp_path / "run"), "--timeout", "240",
+        timeout=300,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert "loss 20 %" in run.stderr
+    kept_its_promise(result_json(run.stdout), 8)
+    assert no_namespaces_left(run.stderr)
 
 
 def test_sim_hosts_bad_arguments_are_one_line():
