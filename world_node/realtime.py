@@ -47,7 +47,7 @@ from ost_ros.lockstep.messages import AgentReport, Ready, RunEnd
 from ost_ros.lockstep.world import result_from_reports
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
-from ost_ros.node.params import ParameterError, declare_role
+from ost_ros.node.params import ParameterError, declare_role, node_scenario
 from ost_ros.node.run import process_age, write_file
 from ost_ros.node.signing import node_auth
 from ost_ros.realtime.messages import Digest, Mark
@@ -63,7 +63,7 @@ from ost_ros.realtime.world import (
     Stand,
 )
 from ost_ros.runconfig import WORLD, ConfigError, RunConfig
-from ost_ros.scenario import ScenarioError, load_scenario, with_team
+from ost_ros.scenario import ScenarioError
 
 POSE_HZ = 10.0  # poses and follow feedback, a modest rate (wall)
 TIMER_S = 0.002  # the world's events are due at most this late (wall)
@@ -76,14 +76,9 @@ class RealtimeWorldNode(Node):
     def __init__(self):
         super().__init__(tp.WORLD_NODE, namespace=tp.NAMESPACE)
         p = declare_role(self, WORLD)
-        if not p["scenario"]:
-            raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
+        scenario = node_scenario(p)
         try:
-            cfg = RunConfig.of(p)
-            scenario = load_scenario(p["scenario"])
-            if p["agents"]:
-                scenario = with_team(scenario, p["agents"])
-            stalls = cfg.stalls()
+            stalls = RunConfig.of(p).stalls()
             self.world = RealtimeWorld(scenario, p["speed_jitter"], p["noise_seed"], tuple(stalls))
         except ScenarioError as exc:
             raise ParameterError(f"scenario: {exc}") from None

@@ -43,11 +43,11 @@ from ost_ros.bounds import lower_bound
 from ost_ros.lockstep.messages import Acted, AgentReport, Ready, RunEnd, RunInfo, Tick
 from ost_ros.lockstep.world import ProtocolViolation, WorldRuntime
 from ost_ros.node import transport as tp
-from ost_ros.node.params import ParameterError, declare_role, realtime_from_args
+from ost_ros.node.params import ParameterError, declare_role, node_scenario, realtime_from_args
 from ost_ros.node.run import process_age, run_node, write_file
 from ost_ros.node.signing import node_auth
 from ost_ros.runconfig import WORLD
-from ost_ros.scenario import ScenarioError, dump_scenario, load_scenario, with_team
+from ost_ros.scenario import dump_scenario
 from world_node.markers import world_markers
 
 # A step taking longer than this is reported (who has not acted yet).
@@ -63,14 +63,7 @@ class WorldNode(Node):
     def __init__(self):
         super().__init__(tp.WORLD_NODE, namespace=tp.NAMESPACE)
         p = declare_role(self, WORLD)  # the run configuration's world settings (ost_ros.runconfig)
-        if not p["scenario"]:
-            raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
-        try:
-            scenario = load_scenario(p["scenario"])
-            if p["agents"]:
-                scenario = with_team(scenario, p["agents"])
-        except ScenarioError as exc:
-            raise ParameterError(f"scenario: {exc}") from None
+        scenario = node_scenario(p)
         self.scenario = scenario
         self.fingerprint = tp.scenario_fingerprint(scenario)
         self.guard = node_auth(p["keys"], p["insecure"], auth.WORLD)

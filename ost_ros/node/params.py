@@ -71,25 +71,31 @@ def declare_role(node: Node, role: str) -> dict[str, Any]:
     return values
 
 
+def node_scenario(p: dict[str, Any]) -> Any:
+    """The run's scenario from a node's ``scenario`` (and ``agents``: the team) parameters; a
+    missing or bad file is a :class:`ParameterError`."""
+    from ost_ros.scenario import ScenarioError, load_scenario, with_team
+
+    if not p["scenario"]:
+        raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
+    try:
+        scenario = load_scenario(p["scenario"])
+        return with_team(scenario, p["agents"]) if p["agents"] else scenario
+    except ScenarioError as exc:
+        raise ParameterError(f"scenario: {exc}") from None
+
+
 def declare_agent(node: Node) -> tuple[dict[str, Any], Any, Any, Any]:
     """An agent node's settings (lockstep or realtime), declared and checked: (the values, their
     :class:`~ost_ros.runconfig.RunConfig`, the scenario with the run's team, the protocol's
     :class:`~ost_ros.protocols.ProtocolSpec`). A missing or bad one is a :class:`ParameterError`."""
     from ost_ros.runconfig import AGENT, ConfigError, RunConfig
-    from ost_ros.scenario import ScenarioError, load_scenario, with_team
 
     p = declare_role(node, AGENT)
     if p["agent_id"] < 0:
         raise ParameterError("agent_id: must be set to a non-negative id (-p agent_id:=N)")
-    if not p["scenario"]:
-        raise ParameterError("scenario: must name a scenario file (-p scenario:=FILE)")
+    scenario = node_scenario(p)
     cfg = RunConfig.of(p)
-    try:
-        scenario = load_scenario(p["scenario"])
-        if p["agents"]:
-            scenario = with_team(scenario, p["agents"])
-    except ScenarioError as exc:
-        raise ParameterError(f"scenario: {exc}") from None
     try:
         spec = cfg.check_protocol(scenario)
     except ConfigError as exc:
