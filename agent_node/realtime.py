@@ -47,7 +47,13 @@ from ost_ros.team import TeamInfo
 START_S = 0.05  # how often it looks whether its endpoints are matched, before the run
 # A service answer can be lost while the world's reply writer has not yet matched this client's
 # reader (the request side matched first): the warm-up question is asked again after this long.
+# The base's action has two such reply paths (the goal's acceptance, its result): a lost first
+# acceptance left a robot of a 50-robot team waiting for it for good, and its team with it.
 WARM_RETRY_S = 1.0
+WARM_GOAL = 0  # the warm-up goal's id (the robot's own goals count from 1)
+# A robot held up this long (wall) by a batch says what it waits for (throttled): a stalled team
+# names the robot it waits on, and that robot says what it waits for.
+STALL_S = 5.0
 
 
 class RealtimeAgentNode(Node):
@@ -83,6 +89,9 @@ class RealtimeAgentNode(Node):
         self.idle: tuple[float, tuple[int, int], int, tuple] | None = None
         self.warm: Any = None
         self.warm_at = 0.0
+        self.early: list[Envelope | Mark | Need | Lost] = []  # what peers said before its start
+        self.warm_goal_at: float | None = None  # when the warm-up goal went out
+        self.warm_goal_done = False  # its acceptance and its result came back
         self.created = time.monotonic()
         # The node's ROS clock is the run's sim time (use_sim_time, /clock); its timers run on the
         # steady clock, because it extrapolates sim time between clock messages at the run's rtf.
@@ -95,6 +104,8 @@ class RealtimeAgentNode(Node):
         self.said = {"messages": 0, "marks": 0, "needs": 0}  # what it published (the report's log line)
         self._build_endpoints()
         self.start_timer = self.create_timer(START_S, self.try_ready, clock=self.wall)
+        self.stall_timer = self.create_timer(STALL_S / 2, self.watch, clock=self.wall)
+        self.asking: tuple[float | None, float] = (None, 0.0)  # (the decision asking, since)
 
     # ------------------------------------------------------------------ endpoints
 
@@ -173,14 +184,15 @@ class RealtimeAgentNode(Node):
                 self.throttle.note(("start", "agent"), f"not ready yet: not matched {lacking[:8]}")
             return
         wall = time.monotonic()
+        # first calls set up the reply paths (both at once): not at the run's first decision
+        base_warm = self.base_warm(wall)
         if self.warm is None or (not self.warm.done() and wall - self.warm_at > WARM_RETRY_S):
-            # a first call sets up its reply path: not at the run's first decision
             if self.warm is not None:
                 self.where.remove_pending_request(self.warm)
                 self.throttle.note(("start", "where"), "where-am-I not answered yet: asking again")
             self.warm, self.warm_at = self.where.call_async(Where.Request(at=0.0)), wall
             return
-        if not self.warm.done():
+        if not self.warm.done() or not base_warm:
             return
         r = self.warm.result()
         if r is not None:  # the base at sim time 0 (the world does not move before the start)
@@ -192,6 +204,28 @@ class RealtimeAgentNode(Node):
             self.pub_alive.publish(String(data=f"agent {self.me}"))
         ready = Ready(self.me, self.p["protocol"], self.fingerprint, self.p["coordination"])
         self.guard.publish(self.pub_ready, wire.to_ros(ready))
+
+    def base_warm(self, wall: float) -> bool:
+        """Whether a goal's acceptance and result reach this robot: a STAND goal before the run,
+        which the world accepts and refuses ("the run has not started"), sent again after
+        WARM_RETRY_S without both answers."""
+        if self.warm_goal_done:
+            return True
+        if self.warm_goal_at is None or wall - self.warm_goal_at > WARM_RETRY_S:
+            if self.warm_goal_at is not None:
+                self.throttle.note(("start", "base"), "base goal not answered yet: sending again")
+            self.warm_goal_at = wall
+            g = FollowCells.Goal()
+            g.id, g.kind = WARM_GOAL, FollowCells.Goal.STAND
+            self.base.send_goal_async(g).add_done_callback(self.on_warm_accepted)
+        return False
+
+    def on_warm_accepted(self, fut) -> None:
+        handle = fut.result()
+        if handle is None or not handle.accepted:
+            self.warm_goal_done = handle is not None  # a rejection came back the same way
+            return
+        handle.get_result_async().add_done_callback(lambda _f: setattr(self, "warm_goal_done", True))
 
     # ------------------------------------------------------------------ time
 
@@ -210,6 +244,9 @@ class RealtimeAgentNode(Node):
             self.started = True
             self._now = t
             self.out(self.rt.start(self.now()))
+            early, self.early = self.early, []
+            for payload in early:
+                self.take(payload)
             return
         now = self.now()
         if 0 <= self.die_at <= now:  # fault injection: die as a robot does, with no last word
@@ -234,6 +271,29 @@ class RealtimeAgentNode(Node):
             self.destroy_timer(self.wake_timer)
         self.wake_timer, self.wake_at = None, None
         self.fire(self.now())
+
+    def watch(self) -> None:
+        """Say what holds the robot up, once it has waited STALL_S of wall time."""
+        if not self.started or self.report_sent:
+            return
+        now, wall = self.now(), time.monotonic()
+        base = f"goals sent {self.last_goal}, accepted {self.accepted}, ended {self.ended}"
+        held = self.rt.waiting(now)
+        if held is not None and now - held[0] > STALL_S * self.rtf:
+            self.throttle.note(("stall", "batch"), f"held up at sim time {now:.0f}: {held[1]} ({base})")
+        # a decision waiting for where its base is holds its commit, and so its peers' batches
+        asking = self.rt.asking()
+        if asking is None or asking != self.asking[0]:
+            self.asking = (asking, wall)
+        elif wall - self.asking[1] > STALL_S:
+            why = "the world's answer"  # a where-am-I is out
+            if self.ask_at is not None:  # held until the last goal is accepted, or has ended
+                why = "its last goal's " + ("acceptance" if self.accepted < self.last_goal else "result")
+            self.throttle.note(
+                ("stall", "where"),
+                f"held up at sim time {now:.0f}: the decision of time {asking:g} has waited "
+                f"{wall - self.asking[1]:.0f} s for where its base is: for {why} ({base})",
+            )
 
     def fire(self, now: float) -> None:
         """The runtime's timers due by now (and the time passed committed)."""
@@ -286,7 +346,13 @@ class RealtimeAgentNode(Node):
         self.exit_code, self.done = 1, True
 
     def take(self, payload: Envelope | Mark | Need | Lost) -> None:
-        if self.started and not self.report_sent and not self.done:
+        if not self.started:
+            # a peer that heard the world's first clock sooner has started and spoken: kept for
+            # the start (dropped, its message or watermark was lost for good and batch 1 with it
+            # — 11 of 50 robots waited on one peer's batch 1 for the rest of a run)
+            self.early.append(payload)
+            return
+        if not self.report_sent and not self.done:
             try:
                 self.out(self.rt.on_message(payload, self.now()))
             except LateMessage as exc:  # a peer broke its watermark: said, never a crash

@@ -1,8 +1,8 @@
 """Realtime runs over DDS (``ost up --realtime``), measured against the lockstep and ``ost sim``:
 
     flock /tmp/ost-dds.lock .venv/bin/python benchmarks/bench_realtime_dds.py \\
-        [--rtf 100,300,1000,3000] [--agents 10] [--objects 20] [--seeds 1] [--clock-hz HZ]
-        [--large] [--large-rtf 20,100] [--out DIR]
+        [--rtf 100,300,1000,3000] [--agents 10] [--objects 20] [--width 500] [--height 200]
+        [--seeds 1] [--clock-hz HZ] [--large] [--large-rtf 20,100] [--out DIR]
 
 For each real-time factor (sim steps per wall second) it starts one world node and one process
 per robot with ``ost up --realtime --rtf R`` and reads the run's ``result.json``: every object
@@ -45,11 +45,18 @@ def sim_makespan(scenario: Path) -> float:
 
 
 def run_up(
-    agents: int, objects: int, seed: int, rtf: float | None, nmax: int, clock_hz: float | None = None
+    agents: int,
+    objects: int,
+    seed: int,
+    rtf: float | None,
+    nmax: int,
+    clock_hz: float | None = None,
+    size: tuple[int, int] = (500, 200),
 ) -> dict:
     """One ``ost up`` run; its result with the wall and CPU seconds it took."""
     d = Path(tempfile.mkdtemp(prefix="ost-bench-rt-"))
     cmd = [OST, "up", "--agents", str(agents), "--objects", str(objects), "--seed", str(seed)]
+    cmd += ["--width", str(size[0]), "--height", str(size[1])]
     cmd += ["--nmax", str(nmax), "--run-dir", str(d / "run")]
     if rtf is not None:
         cmd += ["--realtime", "--rtf", f"{rtf:g}"]
@@ -83,6 +90,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rtf", default="100,300,1000,3000", help="real-time factors, comma-separated")
     ap.add_argument("--agents", type=int, default=10)
     ap.add_argument("--objects", type=int, default=20)
+    ap.add_argument("--width", type=int, default=500, help="grid width (of the --agents runs)")
+    ap.add_argument("--height", type=int, default=200, help="grid height (of the --agents runs)")
     ap.add_argument("--nmax", type=int, default=10)
     ap.add_argument("--seeds", type=int, default=1, help="scenario seeds 1..K")
     ap.add_argument("--clock-hz", type=float, default=None, help="the world's clock rate (ost up's default)")
@@ -104,22 +113,22 @@ def main(argv: list[str] | None = None) -> int:
         "(steps) | wall (s) | bring-up (s) | CPU (s) |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    cases = [(a.agents, a.objects, a.nmax, rtfs)]
+    cases = [(a.agents, a.objects, a.nmax, rtfs, (a.width, a.height))]
     if a.large:
-        cases.append((50, 200, 10, large))
+        cases.append((50, 200, 10, large, (500, 200)))
     clock = "ost up's default" if a.clock_hz is None else f"{a.clock_hz:g} Hz"
     lines = [f"machine: {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f} at start; clock {clock}", ""]
-    for n, m, nmax, rs in cases:
+    for n, m, nmax, rs, size in cases:
         for seed in range(1, a.seeds + 1):
-            lines += [f"N={n}, M={m}, seed {seed}, 500x200, CCP CI=1", "", *head]
+            lines += [f"N={n}, M={m}, seed {seed}, {size[0]}x{size[1]}, CCP CI=1", "", *head]
             ref = None
             if n <= a.lockstep_max:
-                lock = run_up(n, m, seed, None, nmax)
+                lock = run_up(n, m, seed, None, nmax, size=size)
                 ref = sim_makespan(lock["_scenario"])
                 lines.append(row("lockstep", lock, ref))
                 print(lines[-1], flush=True)
             for r in rs:
-                res = run_up(n, m, seed, r, nmax, a.clock_hz)
+                res = run_up(n, m, seed, r, nmax, a.clock_hz, size)
                 ref = ref if ref is not None else sim_makespan(res["_scenario"])
                 lines.append(row(f"realtime rtf {r:g}", res, ref))
                 print(lines[-1], flush=True)

@@ -65,8 +65,20 @@ from ost_ros.realtime.world import (
 from ost_ros.runconfig import WORLD, ConfigError, RunConfig
 from ost_ros.scenario import ScenarioError
 
+PROGRESS_S = 0.25  # the progress file, at most this often (wall)
 POSE_HZ = 10.0  # poses and follow feedback, a modest rate (wall)
-TIMER_S = 0.002  # the world's events are due at most this late (wall)
+# The world polls its bases this often (wall): events are due at most this late. Each wake of
+# rclpy's single-threaded executor rebuilds the wait set of every robot's action server and
+# service, so the period grows with the team: 2 ms up to 10 robots, 0.2 ms a robot beyond (a
+# 50-robot world polled at 2 ms spent most of a core waking; docs/realtime.md).
+TIMER_S, TIMER_S_PER_AGENT, TIMER_S_MAX = 0.002, 0.0002, 0.02
+
+
+def poll_period(agents: int) -> float:
+    """The world's poll period (s) for a team of ``agents``."""
+    return min(TIMER_S_MAX, max(TIMER_S, TIMER_S_PER_AGENT * agents))
+
+
 START_S = 0.05  # how often it looks whether the team is ready, before the run
 
 
@@ -103,7 +115,7 @@ class RealtimeWorldNode(Node):
         self.bring_up_s: float | None = None
         self.created = time.monotonic()
         self.last_try = 0.0
-        self.last_clock = self.last_pose = -1.0
+        self.last_clock = self.last_pose = self.progress_at = -1.0
         self.live = set(self.ids)
         self.suspects: dict[int, float] = {}
         self.alive_seen: set[int] = set()
@@ -120,7 +132,7 @@ class RealtimeWorldNode(Node):
         # its search by then, so its finds must not hang on that repair alone)
         self.detections: dict[int, list[Any]] = {}
         self._build_endpoints(p)
-        self.timer = self.create_timer(TIMER_S, self.on_timer)
+        self.timer = self.create_timer(poll_period(len(self.ids)), self.on_timer)
         self.get_logger().info(
             f"realtime: waiting for {len(self.ids)} agents ({self.fingerprint}); rtf {self.rtf:g}"
         )
@@ -318,11 +330,17 @@ class RealtimeWorldNode(Node):
 
     def publish_clock(self, now: float) -> None:
         self.pub_clock.publish(Clock(clock=self.stamp(now)))
-        if self.p["progress_file"]:
-            delivered = sum(o.delivered is not None for o in self.world.objects.values())
-            _write(
-                self.p["progress_file"], f"{math.floor(now)} {delivered} {len(self.world.objects)}\n", self
-            )
+        self.write_progress(now)
+
+    def write_progress(self, now: float, last: bool = False) -> None:
+        """'step delivered objects' for ost up's progress line, at most every PROGRESS_S (a file
+        written at the clock's rate cost the N=50 world a tenth of its time)."""
+        wall = time.monotonic()
+        if not self.p["progress_file"] or (not last and wall - self.progress_at < PROGRESS_S):
+            return
+        self.progress_at = wall
+        delivered = sum(o.delivered is not None for o in self.world.objects.values())
+        _write(self.p["progress_file"], f"{math.floor(now)} {delivered} {len(self.world.objects)}\n", self)
 
     def publish_poses(self, now: float) -> None:
         stamp = self.stamp(now)
@@ -414,7 +432,11 @@ class RealtimeWorldNode(Node):
         self.live.discard(agent)
         self.world.kill(agent, now)  # its partners' goals end at the next advance
         watermark, seq = self.heard[agent]
-        notice = self.world.notice(agent, max(watermark + 1, math.ceil(now - 1e-9)), seq)
+        # stamped by the time now, not the timer's: declaring a robot republishes what it signed,
+        # and a 50-robot world declaring several in one pass took seconds — a robot only thought
+        # failed commits on meanwhile, and its notice must come after what it committed
+        stamp = max(watermark + 1, math.ceil(max(now, self.sim_now()) - 1e-9))
+        notice = self.world.notice(agent, stamp, seq)
         self.guard.publish(self.pub_lost, wire.to_ros(notice, run=self.run))
         for pub, msg in self.originals[agent]:
             pub.publish(msg)  # as it was signed by the robot itself
@@ -436,6 +458,7 @@ class RealtimeWorldNode(Node):
         self.completed = self.world.done and not self.world.undeliverable()
         end = RunEnd(self.world.t, self.world.t, self.completed, run=self.run)
         self.guard.publish(self.pub_end, wire.to_ros(end))
+        self.write_progress(self.world.end, last=True)
         self.get_logger().info(f"run over at sim time {self.world.end:g}; collecting reports")
         if not self.live:
             self.finish()

@@ -195,6 +195,7 @@ class RealtimeAgent:
     label: str = SEARCHING_STATE  # the state label its base last got
     _sweep: tuple[Sequence[Cell], int] | None = None  # running goal = that sweep from that index
     _asked: bool = False
+    _asked_at: float = -1.0  # when it asked (sim time)
     _decided: float = -1.0  # time of the last decision
     _acted: int = -1  # step of the last act
     _wakes: set[float] = field(default_factory=set)
@@ -222,6 +223,27 @@ class RealtimeAgent:
     @property
     def comm(self):
         return self.agent.comm
+
+    def asking(self) -> float | None:
+        """The time of the decision waiting for where its base is, if one is."""
+        return self._asked_at if self._asked else None
+
+    def waiting(self, now: float) -> tuple[float, str] | None:
+        """What holds it up, if anything: (since when, what) — the oldest batch still incomplete
+        (whose watermarks or messages it lacks), or a decision waiting for where its base is."""
+        t = self._next_batch()
+        if t is not None and t <= now and not self.batches.complete(t):
+            if self.speaker.committed < t:
+                what = (
+                    "its own commit (a decision waits for where its base is)"
+                    if self._asked
+                    else "its own commit"
+                )
+                return float(t), f"batch {t} waits for {what}"
+            return float(
+                t
+            ), f"batch {t} waits for the messages or watermarks of agents {self.batches.lacking(t)}"
+        return None
 
     # ------------------------------------------------------------------ callbacks
 
@@ -314,7 +336,7 @@ class RealtimeAgent:
             self._wake(t)
             return
         if not self._asked:
-            self._asked = True
+            self._asked, self._asked_at = True, now
             self._out.append(AskFeedback(now))
 
     def _decide(self, fb: Feedback, now: float) -> None:

@@ -79,11 +79,9 @@ rclpy.spin(node)
 """
 
 
-def test_robots_cut_off_from_their_detections_still_find_every_object(tmp_path):
-    """A goal's result repeats the detections since the previous result, so a detection lost on
-    its topic (on a lossy link DDS repairs it late, maybe after the robot has ended its search
-    and said so) still reaches the robot in order. Here every robot's detections topic is
-    remapped to one nobody publishes on: whatever a robot finds, it learns from its results."""
+def _run_prepared(tmp_path, edit, extra=None):
+    """A prepared realtime run (``ost up --prepare``) started by the test, each process's command
+    changed by ``edit(name, argv)``, ``extra`` processes beside it; its result and processes."""
     path = _scenario(tmp_path)
     run_dir = tmp_path / "run"
     prep = [str(BIN / "ost"), "up", "--prepare", "--scenario", str(path), "--realtime", "--rtf", "50",
@@ -94,10 +92,10 @@ def test_robots_cut_off_from_their_detections_still_find_every_object(tmp_path):
     domain = free_domain()
     procs = Processes(run_dir, domain)
     try:
-        procs.run("silent", [sys.executable, "-c", SILENT, *(f"{a}/no_detections" for a in agents)])
+        for name, argv in (extra or (lambda _agents: {}))(agents).items():
+            procs.run(name, argv)
         for name, _host, cmd in lines:
-            cut = [] if name == "world" else ["-r", f"{name}/detections:={name}/no_detections"]
-            procs.run(name, [*shlex.split(cmd), *cut])
+            procs.run(name, edit(name, shlex.split(cmd)))
         end = time.monotonic() + 180
         while not (run_dir / "result.json").exists():  # written whole (tmp + rename)
             assert procs.procs["world"].poll() is None, procs.log("world")[-3000:]
@@ -109,6 +107,25 @@ def test_robots_cut_off_from_their_detections_still_find_every_object(tmp_path):
     finally:
         procs.stop()
         release_domain(domain)
+    return result, agents, procs
+
+
+def test_robots_cut_off_from_their_detections_still_find_every_object(tmp_path):
+    """A goal's result repeats the detections since the previous result, so a detection lost on
+    its topic (on a lossy link DDS repairs it late, maybe after the robot has ended its search
+    and said so) still reaches the robot in order. Here every robot's detections topic is
+    remapped to one nobody publishes on: whatever a robot finds, it learns from its results."""
+
+    def cut(name, argv):
+        if name == "world":
+            return argv
+        # OST_RT_DEBUG: the agent logs each detection it hears on the topic (none here)
+        return ["env", "OST_RT_DEBUG=1", *argv, "-r", f"{name}/detections:={name}/no_detections"]
+
+    def silent(agents):
+        return {"silent": [sys.executable, "-c", SILENT, *(f"{a}/no_detections" for a in agents)]}
+
+    result, agents, procs = _run_prepared(tmp_path, cut, silent)
     kept_its_promise(result, 6)
     for a in agents:  # not one detection came by the topic
         assert "detection Detection" not in procs.log(a)
@@ -134,3 +151,76 @@ def test_lockstep_only_options_need_realtime(tmp_path):
     path = _scenario(tmp_path)
     run = ost_up("--scenario", str(path), "--rtf", "100", "--run-dir", str(tmp_path / "run"))
     assert run.returncode == 2 and "--rtf: needs --realtime" in run.stderr
+
+
+# The world node, except that each robot's first warm-up goal is never answered: as when its
+# acceptance or its result is lost while the reply path has not matched yet.
+WORLD_LOSES_FIRST_WARMUP = r"""
+import sys
+from rclpy.task import Future
+from world_node import realtime
+from world_node.world_node import main
+
+execute, lost = realtime.RealtimeWorldNode.execute, set()
+
+async def losing(self, agent, handle):
+    if handle.request.id == 0 and agent not in lost:
+        lost.add(agent)
+        await Future()  # never done
+    return await execute(self, agent, handle)
+
+realtime.RealtimeWorldNode.execute = losing
+sys.exit(main(sys.argv))
+"""
+
+
+def test_a_robot_says_ready_once_its_base_answers_goals(tmp_path):
+    """Before it says ready, a robot sends its base a warm-up goal and waits for its acceptance
+    and result — sent again while they do not come. (The action's reply paths can match after its
+    request side: a 50-robot team hung on one robot whose first sweep's acceptance was lost.)"""
+
+    def losing_world(name, argv):
+        return [sys.executable, "-c", WORLD_LOSES_FIRST_WARMUP, *argv[1:]] if name == "world" else argv
+
+    result, agents, procs = _run_prepared(tmp_path, losing_world)
+    kept_its_promise(result, 6)
+    for a in agents:
+        assert "base goal not answered yet: sending again" in procs.log(a)
+
+
+# The run's clock, relayed to one robot from 2 s (wall) after it first ticks: that robot starts
+# late, after its peers have started and spoken.
+LATE_CLOCK = r"""
+import time, rclpy
+from rosgraph_msgs.msg import Clock
+from ost_ros.node.transport import LATEST_QOS
+rclpy.init()
+node = rclpy.create_node("late_clock", namespace="/ost")
+pub = node.create_publisher(Clock, "late_clock", LATEST_QOS)
+first = []
+
+def relay(msg):
+    first.append(time.monotonic()) if not first else None
+    if time.monotonic() - first[0] >= 2.0:
+        pub.publish(msg)
+
+node.create_subscription(Clock, "clock", relay, LATEST_QOS)
+rclpy.spin(node)
+"""
+
+
+def test_a_robot_that_starts_late_keeps_what_its_peers_said(tmp_path):
+    """A robot starts on the world's first clock message, which reaches robots at different
+    times: what its peers say before it starts is kept for its start (dropped, a message or a
+    watermark was lost for good and its batch never completed: 11 of 50 robots waited on one
+    peer's first batch for the rest of a run)."""
+
+    def late(name, argv):
+        if name != "agent_0":
+            return argv
+        argv = [a.replace("/clock:=/ost/clock", "/clock:=/ost/late_clock") for a in argv]  # ROS time
+        return [*argv, "-r", "/ost/clock:=/ost/late_clock"]  # the node's own clock subscription
+
+    result, _agents, _procs = _run_prepared(tmp_path, late, lambda _agents: {"late_clock": [sys.executable, "-c", LATE_CLOCK]})  # fmt: skip
+    kept_its_promise(result, 6)
+    assert max(result["lag"].values()) >= 50  # it did start late: a batch waited 2 s (100 steps) for it
