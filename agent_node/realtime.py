@@ -47,8 +47,8 @@ from ost_ros.team import TeamInfo
 START_S = 0.05  # how often it looks whether its endpoints are matched, before the run
 # A service answer can be lost while the world's reply writer has not yet matched this client's
 # reader (the request side matched first): the warm-up question is asked again after this long.
-# The base's action has two such reply paths (the goal's acceptance, its result): a lost first
-# acceptance left a robot of a 50-robot team waiting for it for good, and its team with it.
+# The base's action has two such reply paths (the goal's acceptance, its result): a robot that
+# never heard its first goal's acceptance would never commit its time, and hold its team up.
 WARM_RETRY_S = 1.0
 WARM_GOAL = 0  # the warm-up goal's id (the robot's own goals count from 1)
 # A robot held up this long (wall) by a batch says what it waits for (throttled): a stalled team

@@ -228,22 +228,14 @@ class RealtimeAgent:
         """The time of the decision waiting for where its base is, if one is."""
         return self._asked_at if self._asked else None
 
-    def waiting(self, now: float) -> tuple[float, str] | None:
-        """What holds it up, if anything: (since when, what) — the oldest batch still incomplete
-        (whose watermarks or messages it lacks), or a decision waiting for where its base is."""
+    def waiting(self, now: float) -> tuple[int, str] | None:
+        """The oldest batch due and still incomplete, if any: (its stamp, what it lacks)."""
         t = self._next_batch()
-        if t is not None and t <= now and not self.batches.complete(t):
-            if self.speaker.committed < t:
-                what = (
-                    "its own commit (a decision waits for where its base is)"
-                    if self._asked
-                    else "its own commit"
-                )
-                return float(t), f"batch {t} waits for {what}"
-            return float(
-                t
-            ), f"batch {t} waits for the messages or watermarks of agents {self.batches.lacking(t)}"
-        return None
+        if t is None or t > now or self.batches.complete(t):
+            return None
+        if self.speaker.committed < t:
+            return t, f"batch {t} waits for its own commit"
+        return t, f"batch {t} waits for the messages or watermarks of agents {self.batches.lacking(t)}"
 
     # ------------------------------------------------------------------ callbacks
 
