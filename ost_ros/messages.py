@@ -50,6 +50,9 @@ class AgentMessage:
     registry's (each protocol's ``SPEC.messages``) plus the world's :class:`AgentLost`."""
 
     TYPE: ClassVar[str]
+    # False for a message that only cross-checks (CCP's Selection): it changes no agent's shared
+    # view, so without a barrier it is taken in as it comes, not in a batch (docs/realtime.md).
+    SHARED: ClassVar[bool] = True
     sender: int
     t: int
 

@@ -224,6 +224,24 @@ class RealtimeAgent:
     def comm(self):
         return self.agent.comm
 
+    def base_known(self, t: float) -> None:
+        """Every event of its base up to time ``t`` has been handled (an agent node: its base's
+        clock says how many it has sent up to t, and all are in): it may commit up to t, and
+        never further (in process the base is its own hardware: no limit)."""
+        self.speaker.ceiling = t
+
+    def held(self, now: float) -> bool:
+        """Whether its commitment is held back by its base's events (not all in up to ``now``)
+        while someone waits for it, or a batch due waits for it: its caller calls
+        :meth:`on_clock` again once more of them are in."""
+        if self.speaker.ceiling >= math.floor(now + EPS):
+            return False
+        nxt = self.speaker.next_wanted()
+        if nxt is not None and self.speaker.committed < nxt <= now + EPS:
+            return True
+        t = self._next_batch()
+        return t is not None and self.speaker.committed < t <= now + EPS
+
     def asking(self) -> float | None:
         """The time of the decision waiting for where its base is, if one is."""
         return self._asked_at if self._asked else None
@@ -234,6 +252,9 @@ class RealtimeAgent:
         if t is None or t > now or self.batches.complete(t):
             return None
         if self.speaker.committed < t:
+            if self.speaker.ceiling < t:
+                known = self.speaker.ceiling
+                return t, f"batch {t} waits for its own commit: its base's events are in up to {known:g}"
             return t, f"batch {t} waits for its own commit"
         return t, f"batch {t} waits for the messages or watermarks of agents {self.batches.lacking(t)}"
 
@@ -257,11 +278,16 @@ class RealtimeAgent:
         """A peer's message (or the world's failure notice), as it arrives."""
         self._commit(now)
         if isinstance(payload, Envelope):
-            if self.batches.accept(payload):
-                self._marks(self.speaker.want(payload.stamp), now)
+            shared = _shared(payload.message)
+            if self.batches.accept(payload, shared):
+                if shared:
+                    self._marks(self.speaker.want(payload.stamp), now)
+                else:  # a cross-check: taken in as it comes (no batch waits for it)
+                    self.comm.cross_check(payload.message)
         elif isinstance(payload, Mark):
             self.batches.accept_mark(payload)
         elif isinstance(payload, Need):
+            self.batches.accept_mark(payload)  # the watermark it carries
             self._marks(self.speaker.want(payload.stamp), now)
         elif isinstance(payload, Lost):
             self.batches.accept_lost(payload)
@@ -487,22 +513,24 @@ class RealtimeAgent:
     # ------------------------------------------------------------------ the comm side
 
     def _send(self, message, time: float) -> None:
-        env = self.speaker.send(message, time)
+        shared = _shared(message)
+        env = self.speaker.send(message, time, shared)
         self.sent.append(env.stamp)
-        self.batches.accept(env)
+        self.batches.accept(env, shared)
         self._out.append(Publish(env))
-        self._wake(float(env.stamp))  # to commit its stamp: its batch waits for that
+        if shared:
+            self._wake(float(env.stamp))  # to commit its stamp: its batch waits for that
 
     def _marks(self, marks: list[Mark], now: float) -> None:
         for m in marks:
             self._out.append(Publish(m))
         nxt = self.speaker.next_wanted()
-        if nxt is not None and nxt > self.speaker.committed:
-            self._wake(max(float(nxt), now))
+        if nxt is not None and nxt > self.speaker.committed and nxt > now:
+            self._wake(float(nxt))  # (one due already waits for its base's events: held())
 
     def _commit(self, now: float) -> None:
         """Every event of time ≤ now is handled — unless a decision asked for is still to come
-        (then once it is taken)."""
+        (then once it is taken), and no later than its base's events are in (:meth:`base_known`)."""
         if self._asked:
             self._commit_at = now if self._commit_at is None else max(self._commit_at, now)
             return
@@ -530,7 +558,10 @@ class RealtimeAgent:
                 return
             if not self.batches.complete(t):
                 if self.speaker.committed < t:
-                    self._wake(float(t))  # its own clock first (a Need for later may be moot)
+                    if t > now:  # its own clock first (a Need for later may be moot)
+                        self._wake(float(t))
+                    # else its base's events up to t are not all in: it commits once they are
+                    # (its caller calls on_clock then: held())
                     return
                 need = self.batches.ask(t)
                 if need is not None:
@@ -578,7 +609,29 @@ class RealtimeAgent:
         if not self._asked:
             self._pump(now)
         out, self._out = self._out, []
+        return _fold_marks(out)
+
+
+def _shared(message: object) -> bool:
+    """Whether a protocol message joins a batch (False: a cross-check, taken in as it comes)."""
+    return bool(getattr(message, "SHARED", True))
+
+
+def _fold_marks(out: list[Output]) -> list[Output]:
+    """A watermark rides on what is sent anyway: a Mark is left out when a message going out at
+    the same moment carries it (an envelope says "nothing more stamped ≤ its watermark", with a
+    count that includes every message before it)."""
+    implied = max(
+        (o.payload.implied for o in out if isinstance(o, Publish) and isinstance(o.payload, Envelope)),
+        default=None,
+    )
+    if implied is None:
         return out
+    return [
+        o
+        for o in out
+        if not (isinstance(o, Publish) and isinstance(o.payload, Mark) and o.payload.watermark <= implied)
+    ]
 
 
 def _searching(state: str) -> bool:

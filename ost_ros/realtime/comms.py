@@ -93,6 +93,10 @@ class RtRecovery:
     def _statuses_in(self) -> bool:
         return all(j in self.statuses for j in self.alive)
 
+    def cross_check(self, msg: AgentMessage) -> None:
+        """A message that joins no batch (a cross-check, :attr:`AgentMessage.SHARED`): the
+        protocols that send one say what to do with it."""
+
     @property
     def alive(self) -> tuple[int, ...]:  # (Recovery's; declared for the type checker)
         return super().alive  # type: ignore[misc]
@@ -262,6 +266,7 @@ class RtCcpComm(RtRecovery, CcpComm):
     """CCP's comm module without a barrier."""
 
     _all_selections: dict[int, tuple[tuple[int, ...], np.ndarray]] = field(default_factory=dict)
+    _early: dict[int, list[AgentMessage]] = field(default_factory=dict)  # coordination -> selections
 
     def receive(self, t: int, messages: Sequence[AgentMessage]) -> None:
         messages = self._enter(t, messages)
@@ -297,6 +302,17 @@ class RtCcpComm(RtRecovery, CcpComm):
         c = self.knowledge.coordinations
         if c != before and c in self._selections:
             self._all_selections[c] = self._selections[c]
+            for msg in self._early.pop(c, []):
+                self._check_selection(msg)
+
+    def cross_check(self, msg: AgentMessage) -> None:
+        """A peer's Selection, as it comes (it is in no batch): checked against this robot's own
+        coordination of that number — now, or once this robot has computed it."""
+        c = getattr(msg, "coordination", 0)
+        if c > self.knowledge.coordinations:
+            self._early.setdefault(c, []).append(msg)
+        else:
+            self._check_selection(msg)
 
     def _check_selection(self, msg) -> None:
         c = msg.coordination

@@ -58,13 +58,23 @@ __all__ = [
 @dataclass(frozen=True)
 class Envelope:
     """A protocol message as it travels without a barrier: its sender, the sender's count of its
-    messages (from 1) and its stamp (an integer step; non-decreasing in ``seq``)."""
+    messages (from 1), its stamp (an integer step) and the sender's watermark as it sent it
+    (everything it sends from then on is stamped above it: a message is a :class:`Mark` too).
+    ``watermark`` None: ``stamp - 1``, what a sender whose commitments are never held back has
+    (in process; an agent node commits only as far as its base's events are in, so its stamps
+    may run ahead of its watermark)."""
 
     TYPE: ClassVar[str] = "envelope"
     sender: int
     seq: int
     stamp: int
     message: Any
+    watermark: int | None = None
+
+    @property
+    def implied(self) -> int:
+        """The watermark this message announces."""
+        return self.stamp - 1 if self.watermark is None else self.watermark
 
 
 @dataclass(frozen=True)
@@ -83,11 +93,15 @@ class Mark:
 @dataclass(frozen=True)
 class Need:
     """``sender`` waits for batch ``stamp`` and lacks some participant's watermark: whoever has
-    passed ``stamp`` answers with a :class:`Mark` (once)."""
+    passed ``stamp`` answers with a :class:`Mark` (once). It carries the sender's own watermark
+    and count (``watermark``, ``seq``: as a :class:`Mark` would), so the one who asks is never
+    the one waited for."""
 
     TYPE: ClassVar[str] = "need"
     sender: int
     stamp: int
+    watermark: int = -1
+    seq: int = 0
 
 
 @dataclass(frozen=True)
@@ -129,3 +143,45 @@ class Digest:
     coordination: int
     input: str
     output: str
+
+
+@dataclass(frozen=True)
+class BaseEvent:
+    """One event of robot ``agent``'s base, as it travels to the robot (over DDS, on its own
+    ``agent_<i>/base`` topic), numbered from 1 by ``seq``: the base's clock
+    (:class:`BaseClock`) says how many it has sent up to a time, so the robot knows when it has
+    every one of them. ``kind`` says which fields mean something (:mod:`ost_ros.realtime.base`):
+    ``started`` (a goal took over: ``cell``, ``t``, ``offset``, ``first``, ``factor``),
+    ``stalled`` (``t``, ``steps``), ``lifted`` (``object``, ``group``, ``t``, ``factor``),
+    ``detected`` (``cell``, ``t``, ``objects``, ``sensed``), ``ended`` (a goal's result:
+    ``outcome``, ``code``, ``reason``, ``cell``, ``t``, and what it senses there)."""
+
+    TYPE: ClassVar[str] = "base_event"
+    agent: int
+    seq: int
+    kind: str
+    goal: int = 0
+    t: float = 0.0
+    cell: Cell = (0, 0)
+    offset: int = 0
+    first: float = 0.0
+    factor: float = 1.0
+    steps: float = 0.0
+    object: int = -1
+    group: tuple[int, ...] = ()
+    objects: tuple[ObjectInfo, ...] = ()
+    sensed: tuple[ObjectInfo, ...] = ()
+    outcome: str = ""
+    code: str = ""
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class BaseClock:
+    """The bases' clock (realtime runs): sim time ``t``, and for every robot (in the team's id
+    order) how many base events its base has sent with a time ≤ ``t`` — a robot that has all of
+    them has every base event up to ``t``, and may commit it."""
+
+    TYPE: ClassVar[str] = "base_clock"
+    t: float
+    events: tuple[int, ...]

@@ -30,10 +30,11 @@ from ost_ros.realtime.agent import (
     SendGoal,
     WakeAt,
 )
+from ost_ros.realtime.base import BaseMirror, mirror_of
 from ost_ros.realtime.comms import RtAuctionComm, RtCcpComm, RtNcpComm
-from ost_ros.realtime.messages import Digest, Mark, Need
+from ost_ros.realtime.messages import Digest, Mark, Need, ObjectInfo
 from ost_ros.realtime.net import DELIVER, KILL, WAKE, WORLD, EventQueue, Latency, Network
-from ost_ros.realtime.world import CarryStarted, Detection, GoalResult, RealtimeWorld
+from ost_ros.realtime.world import CarryStarted, Detection, Feedback, GoalResult, RealtimeWorld
 from ost_ros.result import RunResult
 from ost_ros.team import TeamInfo
 from ost_ros.world import World
@@ -101,6 +102,7 @@ class RealtimeReport:
     needs: int = 0
     copies: int = 0  # copies the network delivered
     events: int = 0  # events the run processed
+    mirror_errors: list[str] = field(default_factory=list)  # (run_realtime(mirrors=True))
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -135,7 +137,45 @@ class _Run:
     live: set[int]
     digests: list[Digest] = field(default_factory=list)
     notices: dict[int, int] = field(default_factory=dict)  # failed agent -> its notice's stamp
+    # Each robot's own picture of its base (as an agent node keeps it, from its base's events),
+    # checked against the world at every decision: differences are listed here.
+    mirrors: dict[int, BaseMirror] = field(default_factory=dict)
+    mirror_errors: list[str] = field(default_factory=list)
+    # How far behind its clock a robot knows its base's events (an agent node's base clock comes
+    # that late): it commits no later than now - base_lag (0: its base is its own hardware).
+    base_lag: float = 0.0
+    declare_after: float = 0.0  # steps from a robot's death to the world's notice of it
+    _ticks: dict[int, float] = field(default_factory=dict)  # agent -> its next base clock (base_lag)
     _world_times: set[float] = field(default_factory=set)
+
+    def base_event(self, ev: Any) -> None:
+        """A base's event for the robots' pictures (a tracking world's GoalStarted and Stalled go
+        only there)."""
+        if not self.mirrors:
+            return
+        if isinstance(ev, CarryStarted):
+            for j in ev.group:
+                if j in self.mirrors:
+                    self.mirrors[j].take(ev)
+        elif ev.agent in self.mirrors:
+            sensed: tuple[ObjectInfo, ...] = ()
+            if isinstance(ev, GoalResult) and ev.outcome in ("reached", "aborted"):
+                sensed = self.world.feedback(ev.agent, ev.time).sensed
+            self.mirrors[ev.agent].take(ev, sensed)
+
+    def check_mirror(self, agent: int, fb: Feedback) -> None:
+        m = self.mirrors.get(agent)
+        if m is None:
+            return
+        mine = m.feedback(fb.time) if m.fresh else None
+        if mine is None or (mine.time, mine.cell, mine.goal, mine.index, mine.carrying) != (
+            fb.time,
+            fb.cell,
+            fb.goal,
+            fb.index,
+            fb.carrying,
+        ):
+            self.mirror_errors.append(f"agent {agent}: world {fb}, mirror {mine}")
 
     def dispatch(self, agent: int, outputs: list[Output], now: float) -> None:
         ra = self.agents[agent]
@@ -150,14 +190,24 @@ class _Run:
                     self.report.needs += 1
                 self.net.send(now, p, [j for j in sorted(self.live) if j != agent])
             elif isinstance(o, SendGoal):
+                if agent in self.mirrors:
+                    self.mirrors[agent].sent(o.id, o.goal)
                 for r in self.world.goal(agent, o.id, o.goal, o.at):
-                    self.dispatch(r.agent, self.agents[r.agent].on_result(r, now), now)
+                    self.base_event(r)
+                    if isinstance(r, GoalResult):
+                        self.dispatch(r.agent, self.agents[r.agent].on_result(r, now), now)
             elif isinstance(o, AskFeedback):
-                self.dispatch(agent, ra.on_feedback(self.world.feedback(agent, o.at), now), now)
+                fb = self.world.feedback(agent, o.at)
+                self.check_mirror(agent, fb)
+                self.dispatch(agent, ra.on_feedback(fb, now), now)
             elif isinstance(o, WakeAt):
                 self.queue.push(max(o.time, now), WAKE, ("wake", agent))
             elif isinstance(o, Digest):
                 self.digests.append(o)
+        if self.base_lag and agent in self.live and ra.held(now) and self._ticks.get(agent, -1.0) <= now:
+            # its base's clock tells it more base_lag later (an agent node's base clock)
+            self._ticks[agent] = now + self.base_lag
+            self.queue.push(now + self.base_lag, WAKE, ("wake", agent))
         self.schedule_world()
 
     def schedule_world(self) -> None:
@@ -169,6 +219,7 @@ class _Run:
     def world_events(self, now: float) -> None:
         self._world_times.discard(now)
         for ev in self.world.advance(now):
+            self.base_event(ev)
             if isinstance(ev, GoalResult):
                 if ev.agent in self.live:
                     self.dispatch(ev.agent, self.agents[ev.agent].on_result(ev, now), now)
@@ -205,14 +256,18 @@ class _Run:
             if phase == WORLD:
                 self.world_events(t)
             elif phase == KILL:
-                self.kill(ev[1], t)
+                (self.kill if ev[0] == "kill" else self.declare)(ev[1], t)
             elif phase == WAKE:
                 if ev[1] in self.live:
                     ra = self.agents[ev[1]]
+                    if self.base_lag:
+                        ra.base_known(t - self.base_lag)
                     self.dispatch(ev[1], ra.start(t) if ev[0] == "start" else ra.on_clock(t), t)
             elif phase == DELIVER:
                 receiver, payload = ev
                 if receiver in self.live:
+                    if self.base_lag:
+                        self.agents[receiver].base_known(t - self.base_lag)
                     self.report.copies += 1
                     self.dispatch(receiver, self.agents[receiver].on_message(payload, t), t)
 
@@ -226,14 +281,25 @@ class _Run:
         return n
 
     def kill(self, agent: int, now: float) -> None:
-        """The robot is gone; the world declares it, stamped above its last watermark."""
+        """The robot is gone; the world declares it, stamped above its last watermark — at once,
+        or ``declare_after`` steps later (as over DDS, where a lapsed liveliness tells the world:
+        meanwhile the robot's base moves on, sensing what its dead robot never reports)."""
         if agent not in self.live:
             return
-        self.world.kill(agent, now)
         self.live.discard(agent)
+        if self.declare_after:
+            self.queue.push(now + self.declare_after, KILL, ("declare", agent))
+        else:
+            self.declare(agent, now)
+
+    def declare(self, agent: int, now: float) -> None:
+        self.world.kill(agent, now)
         sp = self.agents[agent].speaker
         stamp = max(sp.announced + 1, math.ceil(now - 1e-9))
-        notice = self.world.notice(agent, stamp, sp.seq)
+        # declared late, its counted sensing ends where its last watermark says (it commits a
+        # time only once its base's events up to it are handled): not where its base is now
+        sensed = float(sp.announced) if self.declare_after else None
+        notice = self.world.notice(agent, stamp, sp.seq, sensed_until=sensed)
         self.notices[agent] = stamp
         self.net.send(now, notice, sorted(self.live))
         self.schedule_world()
@@ -251,10 +317,17 @@ def run_realtime(
     failures: Mapping[int, float] | None = None,
     max_steps: int | None = None,
     prepare: Callable[[list[RealtimeAgent]], None] | None = None,
+    mirrors: bool = False,
+    base_lag: float = 0.0,
+    declare_after: float = 0.0,
 ) -> tuple[RunResult, RealtimeReport]:
     """One run without a barrier, in process; the result (as ``ost sim`` builds it) and what the
     realtime run adds (agreement, lags, network figures). ``failures``: agent -> the time it
-    fails; ``prepare(agents)``: fault injection before the run (tests)."""
+    fails; ``prepare(agents)``: fault injection before the run (tests); ``mirrors``: every robot
+    also keeps its own picture of its base from the base's events, checked against the world at
+    every decision (``report.mirror_errors``); ``base_lag``: every robot knows its base's events
+    only this many steps after they happen (as over DDS), so it commits no later than that;
+    ``declare_after``: a failed robot is declared this many steps after it died (as over DDS)."""
     policy = policy or CoordinationPolicy()
     latency = latency or Latency()
     failures = dict(failures or {})
@@ -263,7 +336,7 @@ def run_realtime(
         prepare(agents)
     queue = EventQueue()
     run = _Run(
-        RealtimeWorld(scenario, speed_jitter, seed, tuple(stalls)),
+        RealtimeWorld(scenario, speed_jitter, seed, tuple(stalls), tracking=mirrors),
         {ra.id: ra for ra in agents},
         Network(queue, latency, seed),
         queue,
@@ -273,6 +346,11 @@ def run_realtime(
     bound = step_limit(scenario, len(failures))
     slack = (latency.steps + latency.jitter + 2) * 4 * (len(scenario.objects) + scenario.n_agents + 4)
     limit = max_steps if max_steps is not None else 2 * bound + slack + sum(s[2] for s in stalls)
+    run.base_lag, run.declare_after = base_lag, declare_after
+    if mirrors:
+        where = {o.id: o.destination for o in scenario.objects}
+        team = TeamInfo.from_scenario(scenario)
+        run.mirrors = {ra.id: mirror_of(team, ra.id, where.__getitem__) for ra in agents}
     for a, t in sorted(failures.items()):
         if a not in run.agents:
             raise ValueError(f"failure of agent {a}: no such agent")
@@ -286,6 +364,7 @@ def run_realtime(
         result.completed = False
         result.error = error
     run.report.lag = {ra.id: ra.max_lag for ra in agents}
+    run.report.mirror_errors = run.mirror_errors
     run.report.disagreements, run.report.coordinations = disagreements(agents)
     return result, run.report
 

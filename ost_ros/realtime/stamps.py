@@ -48,20 +48,38 @@ class Speaker:
     me: int
     seq: int = 0  # messages sent so far
     committed: int = -1  # nothing more stamped ≤ committed will be sent
+    # The highest step it may commit: every event up to it has been handled (an agent node: its
+    # base's events are in up to there). A message stamped above it announces no more than it.
+    ceiling: float = math.inf
     announced: int = -1  # the largest watermark peers can know (explicitly or implied)
     wanted: set[int] = field(default_factory=set)  # stamps peers wait for, not yet announced
 
-    def send(self, message: object, time: float) -> Envelope:
-        """Stamp ``message`` (happening at ``time``); it implies the watermark stamp - 1."""
+    def send(self, message: object, time: float, shared: bool = True) -> Envelope:
+        """Stamp ``message`` (happening at ``time``); it carries the watermark it implies — stamp
+        - 1 unless the ceiling holds the commitment lower. ``shared``: it belongs to a batch (a
+        cross-check does not: nobody waits for its stamp)."""
         stamp = stamp_of(time, self.committed)
         self.seq += 1
-        self.committed = max(self.committed, stamp - 1)
-        self.announced = max(self.announced, stamp - 1)
-        self.wanted.add(stamp)  # peers will need batch `stamp`: say when it is passed
-        return Envelope(self.me, self.seq, stamp, message)
+        self.committed = max(self.committed, min(stamp - 1, self._top()))
+        self.announced = max(self.announced, self.committed)
+        if shared:
+            self.wanted.add(stamp)  # peers will need batch `stamp`: say when it is passed
+        held = self.committed != stamp - 1
+        return Envelope(self.me, self.seq, stamp, message, self.committed if held else None)
+
+    def _top(self) -> int:
+        return math.floor(self.ceiling + 1e-9) if math.isfinite(self.ceiling) else 1 << 62
+
+    def need(self, stamp: int) -> Need:
+        """A request for batch ``stamp``, carrying this participant's own watermark (so nobody
+        waits for a Mark of the one who asks)."""
+        self.announced = max(self.announced, self.committed)
+        return Need(self.me, stamp, self.committed, self.seq)
 
     def commit(self, t: int) -> list[Mark]:
-        """Every event of time ≤ t is handled: commit t and announce it if someone waits."""
+        """Every event of time ≤ t is handled: commit t (no higher than the ceiling) and announce
+        it if someone waits."""
+        t = min(t, self._top())
         if t > self.committed:
             self.committed = t
         return self._announce()
@@ -144,17 +162,20 @@ class Batches:
 
     # ------------------------------------------------------------------ input
 
-    def accept(self, env: Envelope) -> bool:
+    def accept(self, env: Envelope, shared: bool = True) -> bool:
         """A message (own or a peer's); False if it is a duplicate or of no use (a dead robot's
-        beyond its notice)."""
+        beyond its notice). ``shared`` False (a cross-check): its arrival and the watermark it
+        implies are noted, but it joins no batch (the caller takes it in as it comes)."""
         if env.sender != self.me:
             peer = self._peers.get(env.sender)
             if peer is None or not peer.arrived(env.seq):
                 return False
-            peer.mark(env.stamp - 1, env.seq)
+            peer.mark(env.implied, env.seq)
         notice = self.failed.get(env.sender)
         if notice is not None and not self._counts(env, notice):
             return False
+        if not shared:
+            return True
         if env.stamp <= self.done:
             raise LateMessage(
                 f"message {env.seq} of agent {env.sender} stamped {env.stamp}, batch {self.done} is taken"
@@ -167,7 +188,8 @@ class Batches:
         peer = self._peers.get(sender)
         return peer is not None and (seq <= peer.contiguous or seq in peer.ahead)
 
-    def accept_mark(self, mark: Mark) -> None:
+    def accept_mark(self, mark: Mark | Need) -> None:
+        """A watermark: a Mark's, or the one a Need carries."""
         peer = self._peers.get(mark.sender)
         if peer is not None:
             peer.mark(mark.watermark, mark.seq)
@@ -267,4 +289,4 @@ class Batches:
         if not [p for p in self.lacking(t) if p != self.me]:
             return None
         self._asked.add(t)
-        return Need(self.me, t)
+        return self.speaker.need(t)

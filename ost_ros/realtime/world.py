@@ -112,9 +112,40 @@ class Detection:
 
 @dataclass(frozen=True)
 class CarryStarted:
+    """The group has lifted ``object`` at ``time``; it moves x first then y to the destination,
+    a move every (group period)·``factor`` steps, each lasting ``factor`` (the members' largest)."""
+
     object: int
     group: tuple[int, ...]
     time: float
+    factor: float = 1.0
+
+
+@dataclass(frozen=True)
+class GoalStarted:
+    """Goal ``goal`` has taken over ``agent``'s base (a tracking world says so: the robot's own
+    picture of its base, :class:`~ost_ros.realtime.base.BaseMirror`, is kept from these): the
+    robot stands at ``cell`` from ``time``; a FOLLOW's first move leaves at ``first`` (inf: it
+    stands or holds), then one every period·``factor`` steps, each lasting ``factor``;
+    ``offset`` 1: the goal's path starts next to ``cell`` (0: at it)."""
+
+    agent: int
+    goal: int
+    time: float
+    cell: Cell
+    offset: int = 0
+    first: float = math.inf
+    factor: float = 1.0
+
+
+@dataclass(frozen=True)
+class Stalled:
+    """``agent``'s base stands still for ``steps`` from ``time``: every move not begun by then
+    leaves that much later (a tracking world says so; a carry's whole group is told)."""
+
+    agent: int
+    time: float
+    steps: float
 
 
 @dataclass(frozen=True)
@@ -133,14 +164,25 @@ class Feedback:
     sensed: tuple[ObjectInfo, ...]
 
 
-Event = GoalResult | Detection | CarryStarted
+Event = GoalResult | Detection | CarryStarted | GoalStarted | Stalled
+
+
+def follow_departures(first: float, moves: int, period: int, factor: float) -> list[float]:
+    """When each move of a FOLLOW leaves (the world's and the robot's mirror's one formula)."""
+    step = period * factor
+    return [first + i * step for i in range(moves)]
+
+
+def carry_departures(lift: float, moves: int, period: int, factor: float) -> list[float]:
+    """When each move of a carry leaves, lifted at ``lift`` by a group of this period."""
+    return [lift + i * period * factor for i in range(moves)]
 
 
 # ----------------------------------------------------------------------------- internals
 
 
 @dataclass
-class _Route:
+class Route:
     """Moves along ``cells`` from ``cells[0]`` (reached at ``start``): move i leaves ``cells[i]``
     at ``depart[i]`` and takes ``factor``. ``made``: the moves it made when it was cut."""
 
@@ -188,7 +230,7 @@ class _Route:
 class _Leg:
     """A part of a robot's life on a route: what it counts as (search, travel or carry)."""
 
-    route: _Route
+    route: Route
     kind: str
 
 
@@ -196,7 +238,7 @@ class _Leg:
 class _Carry:
     object: int
     group: tuple[int, ...]
-    route: _Route
+    route: Route
     period: int
     version: int = 0
 
@@ -208,7 +250,7 @@ class _Bot:
     period: int
     cell: Cell
     time: float = 0.0  # when it got to ``cell`` (the start of whatever it does there)
-    route: _Route | None = None  # its current motion (a Follow goal's, or its group's carry)
+    route: Route | None = None  # its current motion (a Follow goal's, or its group's carry)
     goal: int = 0  # id of its current goal (0: none)
     kind: str = ""  # "follow", "stand", "hold", "carry"
     goal_path: tuple[Cell, ...] = ()
@@ -263,6 +305,9 @@ class RealtimeWorld:
     seed: int = 0
     stalls: tuple[tuple[int, float, float], ...] = ()  # (agent, from step, steps)
     now: float = 0.0
+    # Also say how each base moves (GoalStarted from goal(), Stalled from advance(), in order
+    # with the rest): what a robot whose base is across a network keeps its picture from.
+    tracking: bool = False
     refusals: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -355,7 +400,7 @@ class RealtimeWorld:
                     f"t={_num(at)} agent {agent}: {type(goal).__name__.lower()} refused: {reason}"
                 )
             return [GoalResult(agent, gid, REFUSED, at, cell, code, reason)]
-        out = self._leave(b, at, time, cell, m)
+        out: list[Any] = self._leave(b, at, time, cell, m)
         self._finish_label(b, goal, time)
         b.goal, b.version = gid, b.version + 1
         b.label = goal.state
@@ -365,6 +410,12 @@ class RealtimeWorld:
             b.kind, b.route = "stand", None
         else:
             self._hold(b, goal, time)
+        if self.tracking:
+            r = b.route
+            first = r.depart[0] if b.kind == "follow" and r is not None and r.depart else math.inf
+            out.append(
+                GoalStarted(agent, gid, time, cell, b.offset if b.kind == "follow" else 0, first, b.factor)
+            )
         return out
 
     def _refuse(self, b: _Bot, goal: Goal, cell: Cell) -> tuple[str, str] | None:
@@ -447,9 +498,7 @@ class RealtimeWorld:
             return
         f = self._factor()
         first = _first_movable(max(time, b.stall_until), b.period)
-        step = b.period * f
-        depart = [first + i * step for i in range(len(cells) - 1)]
-        r = _Route(cells, time, depart, f)
+        r = Route(cells, time, follow_departures(first, len(cells) - 1, b.period, f), f)
         b.route, b.factor = r, f
         b.legs.append(_Leg(r, "search" if goal.state == SEARCHING_STATE else "travel"))
         self._schedule_follow(b)
@@ -514,8 +563,7 @@ class RealtimeWorld:
         k = group_period([x.period for x in bots])
         f = max(x.factor for x in bots)
         cells = route([o.at, o.spec.destination])
-        depart = [t + i * k * f for i in range(len(cells) - 1)]
-        r = _Route(cells, t, depart, f)
+        r = Route(cells, t, carry_departures(t, len(cells) - 1, k, f), f)
         run = _Carry(oid, group, r, k, self._next())
         self._carries[oid] = run
         self._holds.pop(oid, None)
@@ -528,7 +576,7 @@ class RealtimeWorld:
             x.kind, x.route = "carry", r
             x.legs.append(_Leg(r, "carry"))
         self._push(r.arrive(len(cells) - 1), 2, ("deliver", oid, run.version))
-        return [CarryStarted(oid, group, t)]
+        return [CarryStarted(oid, group, t, f)]
 
     def _deliver(self, run: _Carry, t: float) -> list[Event]:
         o = self.objects[run.object]
@@ -623,13 +671,17 @@ class RealtimeWorld:
         b.version += 1
         b.kind, b.route, b.goal = "dead", None, 0
 
-    def notice(self, agent: int, stamp: int, seq: int) -> Lost:
+    def notice(self, agent: int, stamp: int, seq: int, sensed_until: float | None = None) -> Lost:
         """The world's stamped notice of ``agent``'s failure: where its counted sensing ends (the
-        cell it occupied at step ``stamp``), the object it held or carried (where it lies now) and
-        the objects it helped deliver."""
+        cell it occupied at step ``stamp``, or at ``sensed_until`` if that is earlier: over DDS the
+        world learns of a death late and its base moved on meanwhile — what the robot reported is
+        what it sensed up to the last watermark the world heard, since it commits a time only
+        once its base's events up to it are in), the object it held or carried (where it lies
+        now) and the objects it helped deliver."""
         b = self.bots[agent]
         died = b.died if b.died is not None else self.now
-        at = self.position(agent, min(float(stamp), died))
+        until = min(float(stamp), died, math.inf if sensed_until is None else sensed_until)
+        at = self.position(agent, until)
         dropped: tuple[ObjectInfo, ...] = ()
         load = self._loads.get(agent)
         if load is not None and self.objects[load[0]].delivered is None:
@@ -637,22 +689,28 @@ class RealtimeWorld:
             dropped = (ObjectInfo(o.spec.id, o.at, o.spec.destination, o.spec.required),)
         return Lost(agent, stamp, dropped, seq=seq, at=at, delivered=tuple(b.delivered))
 
-    def _stall(self, agent: int, t: float, steps: float) -> None:
+    def _stall(self, agent: int, t: float, steps: float) -> list[Event]:
+        """The robot stands still for ``steps`` from ``t``; who moves differently for it (a
+        carry: its whole group) is told when the world is tracking."""
         b = self.bots[agent]
         if not b.alive:
-            return
+            return []
         b.stall_until = max(b.stall_until, t + steps)
+        moved: list[int] = []
         if b.kind == "follow" and b.route is not None:
             b.route.shift(t, steps)
             b.version += 1
             self._schedule_follow(b)
+            moved = [agent]
         elif b.kind == "carry":
             run = self._carries[b.holding]
             run.route.shift(t, steps)
             run.version = self._next()
             self._push(run.route.arrive(len(run.route.cells) - 1), 2, ("deliver", run.object, run.version))
+            moved = [j for j in run.group if self.bots[j].alive and self.bots[j].kind == "carry"]
         elif b.kind == "hold" and b.holding in self._depart:
             self._check_group(b.holding)
+        return [Stalled(j, t, steps) for j in moved] if self.tracking else []
 
     # ------------------------------------------------------------------ events
 
@@ -683,7 +741,7 @@ class RealtimeWorld:
             self.now = max(self.now, t)
             kind = ev[0]
             if kind == "stall":
-                self._stall(ev[1], t, ev[2])
+                out += self._stall(ev[1], t, ev[2])
             elif kind == "lift":
                 out += self._lift(ev[1], ev[3], t)
             elif kind == "deliver":

@@ -18,6 +18,7 @@ class Selection(AgentMessage):
     """
 
     TYPE: ClassVar[str] = "selection"
+    SHARED: ClassVar[bool] = False  # a cross-check: no peer's schedule depends on it
     sender: int
     t: int
     coordination: int

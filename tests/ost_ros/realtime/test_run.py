@@ -19,7 +19,7 @@ from ost_ros.protocols.ncp import SPEC as NCP
 from ost_ros.realtime import run as rt
 from ost_ros.realtime.net import Latency, Network
 from ost_ros.realtime.run import run_realtime
-from ost_ros.scenario import build_scenario, generate_objects
+from ost_ros.scenario import build_scenario, generate_objects, generate_scenario
 from tests.strategies import policies, scenarios
 
 
@@ -99,11 +99,54 @@ def test_without_a_barrier_every_object_is_carried_by_its_group_and_all_agree(da
         speed_jitter=data.draw(st.sampled_from([0.0, 0.0, 0.3, 1.0])),
         stalls=stalls,
         failures=dead,
+        mirrors=True,
     )
     check_run(s, r, report, dead)
+    # each robot's own picture of its base, kept from its base's events, is the world's at every
+    # decision (what an agent node answers its decisions from)
+    assert report.mirror_errors == []
     # the end within a bound: the lockstep bound, slowed by the noise, plus the network's delays
     slack = (latency.steps + latency.jitter + 2) * 4 * (len(s.objects) + s.n_agents + 4)
     assert r.steps <= 2 * (2 * step_limit(s, len(dead)) + slack + sum(st[2] for st in stalls))
+
+
+@settings(max_examples=300, deadline=None)
+@given(data=st.data())
+def test_robots_that_know_their_bases_late_and_failures_declared_late_keep_every_promise(data):
+    """As over DDS: a robot knows its base's events only ``base_lag`` steps after they happen
+    (it commits no later, so its stamps run ahead of its watermark), and a dead robot is declared
+    ``declare_after`` steps after it died while its base moves on (its counted sensing ends at its
+    last watermark, not where its base went)."""
+    s, protocol, policy = data.draw(teams())
+    dead = data.draw(failures(s, horizon=300))
+    r, report = run_realtime(
+        s,
+        protocol,
+        policy,
+        latency=Latency(data.draw(st.integers(0, 30)), data.draw(st.integers(0, 30))),
+        seed=data.draw(st.integers(0, 10**6)),
+        speed_jitter=data.draw(st.sampled_from([0.0, 0.3])),
+        failures=dead,
+        base_lag=data.draw(st.sampled_from([0.0, 0.5, 1.0, 3.0, 10.0])),
+        declare_after=data.draw(st.sampled_from([0.0, 5.0, 40.0])),
+        mirrors=True,
+    )
+    check_run(s, r, report, dead)
+    assert report.mirror_errors == []
+
+
+@pytest.mark.parametrize("when", [80, 150, 300])
+def test_a_robot_declared_late_leaves_no_unreported_find_behind(when):
+    """The run that hung over DDS (`ost_up.sh ... --realtime --rtf 20 --kill-agent 2:80`: 9 of 10
+    objects, the survivors idle): robot 2 dies at step 80 and is declared 40 steps later; its base
+    sensed an object meanwhile that it never reported. The notice counts its sensing up to its
+    last watermark only, so the survivors search there again."""
+    s = generate_scenario(6, 10, 919, Grid(120, 60), 3)
+    r, report = run_realtime(
+        s, latency=Latency(20, 10), failures={2: when}, declare_after=40, base_lag=1, mirrors=True
+    )
+    check_run(s, r, report, {2})
+    assert r.completed and report.mirror_errors == []
 
 
 @settings(max_examples=40, deadline=None)

@@ -80,7 +80,7 @@ def test_every_arrival_order_gives_the_same_batches():
 def test_a_need_is_only_for_a_batch_without_messages():
     me = Speaker(0)
     b = Batches(0, (0, 1), me)
-    assert b.ask(7) == Need(0, 7) and b.ask(7) is None  # once
+    assert b.ask(7) == Need(0, 7, -1, 0) and b.ask(7) is None  # once
     b.accept(env(1, 1, 9))
     assert b.ask(9) is None  # its message reaches everyone: they announce on it
 
@@ -132,3 +132,57 @@ def test_a_later_batch_waits_for_a_dead_robots_message_still_on_the_way():
     b.accept(env(1, 1, 0))
     notice = b.failed[1]
     assert [(t, b.take(t)) for t in (0, 1, 4)] == [(0, ["1.1"]), (1, [notice]), (4, ["2.1"])]
+
+
+def test_a_need_carries_the_watermark_of_the_one_who_asks():
+    me = Speaker(0)
+    me.commit(7)
+    b = Batches(0, (0, 1), me)
+    need = b.ask(7)
+    assert need == Need(0, 7, 7, 0) and me.announced == 7
+    peer = Batches(1, (0, 1), Speaker(1))
+    peer.accept_mark(need)  # the asker's own watermark: nobody waits for its Mark
+    assert 0 not in peer.lacking(7)
+
+
+def test_a_commitment_held_back_by_the_ceiling_rides_on_the_message_explicitly():
+    sp = Speaker(0)
+    sp.ceiling = 103.0  # its base's events are in up to 103
+    assert sp.commit(110) == [] and sp.committed == 103
+    m = sp.send("find", 105.3)  # decided at 105.3 (the robot's clock runs ahead of its base's)
+    assert (m.stamp, m.watermark, m.implied) == (106, 103, 103) and sp.committed == 103
+    late = sp.send("late find", 104.0)  # an event its base reports late keeps its own step
+    assert late.stamp == 104 and late.implied == 103
+    b = Batches(1, (0, 1), Speaker(1))
+    b.speaker.commit(200)
+    b.accept(m)
+    b.accept(late)
+    assert b.lacking(104) == [0]  # 0 only said "nothing more at or below 103"
+    sp.ceiling = 120.0
+    assert sp.commit(110) == [Mark(0, 110, 2)]
+    b.accept_mark(Mark(0, 110, 2))
+    assert [(t, b.take(t)) for t in (104, 106)] == [(104, ["late find"]), (106, ["find"])]
+    unheld = Speaker(2).send("x", 5.0)  # no ceiling: the watermark is stamp - 1 (not spelt out)
+    assert unheld.watermark is None and unheld.implied == 4
+
+
+def test_a_cross_check_joins_no_batch_but_counts_as_arrived():
+    sp = Speaker(1)
+    check = sp.send("selection", 6.0, shared=False)
+    assert sp.wanted == set()  # nobody waits for its stamp
+    b = Batches(0, (0, 1), Speaker(0))
+    b.speaker.commit(9)
+    assert b.accept(check, shared=False) and b.next_stamp() is None
+    assert not b.accept(check, shared=False)  # a copy
+    b.accept_mark(Mark(1, 9, 1))
+    assert b.complete(6) and b.take(6) == []
+
+
+def test_a_mark_is_left_out_when_a_message_at_the_same_moment_carries_it():
+    from ost_ros.realtime.agent import Publish, _fold_marks
+
+    mark, msg = Publish(Mark(0, 7, 3)), Publish(env(0, 4, 8))  # the message implies 7, count 4
+    assert _fold_marks([mark, msg]) == [msg]
+    higher = Publish(Mark(0, 9, 4))
+    assert _fold_marks([higher, msg]) == [higher, msg]  # it says more than the message: kept
+    assert _fold_marks([mark]) == [mark]
