@@ -162,3 +162,42 @@ class RunResult:
         for a in self.agents:
             lines.append(f"{a.id:>5} {a.cost!s:>8} {a.idle:>8} {a.carry:>8} {a.search:>8} {a.travel:>8}")
         return "\n".join(lines)
+
+
+def world_result(
+    agents: list[AgentRecord],
+    objects: list[ObjectRecord],
+    *,
+    done: bool,
+    left: list[int],
+    required: dict[int, int],
+    failed: dict[int, int],
+    steps: int,
+    rejections: list[str],
+    **extra: Any,
+) -> RunResult:
+    """The result of a world's record (the lockstep world's and the realtime bases' alike):
+    ``agents`` and ``objects`` as recorded, ``done`` (every object the survivors can carry is
+    delivered, every survivor home), ``left`` the objects too heavy for the survivors
+    (``required``: object → n_i), ``failed`` agent → the step it failed in."""
+    finished = [r.finished for r in agents if r.id not in failed and r.finished is not None]
+    delivered = [o.delivered for o in objects if o.delivered is not None]
+    result = RunResult(
+        makespan=max(finished) if done and finished else None,
+        last_delivery=max(delivered, default=0),
+        completed=done and not left,
+        steps=steps,
+        agents=agents,
+        objects=objects,
+        rejections=list(rejections),
+        failures=[{"agent": a, "step": t} for a, t in sorted(failed.items())],
+        **extra,
+    )
+    if done and left:
+        need = max(required[i] for i in left)
+        result.error = (
+            f"{len(left)} of {len(objects)} objects cannot be delivered: objects "
+            f"{left} need up to {need} robots and {len(agents) - len(failed)} survive (agents "
+            f"{sorted(failed)} failed)"
+        )
+    return result

@@ -23,7 +23,7 @@ from typing import Any
 from ost_ros.messages import FINISH_STATE, SEARCHING_STATE, Action, ActionKind, ObjectInfo, Observation
 from ost_ros.model import Cell, Scenario, can_move, group_period
 from ost_ros.motion import DIRECTIONS, apply
-from ost_ros.result import AgentRecord, ObjectRecord, RunResult
+from ost_ros.result import AgentRecord, ObjectRecord, RunResult, world_result
 from ost_ros.sensing import BLOCK
 
 
@@ -292,31 +292,18 @@ class World:
         )
 
     def result(self, **extra: Any) -> RunResult:
-        agents = [self.records[a.id] for a in self.scenario.agents]
         objects = [
             ObjectRecord(o.spec.id, o.carriers, o.start, o.delivered)
             for o in sorted(self.objects.values(), key=lambda o: o.spec.id)
         ]
-        finished = [r.finished for r in agents if r.id not in self.failed and r.finished is not None]
-        delivered = [o.delivered for o in objects]
-        done = self.done
-        left = self.undeliverable()
-        result = RunResult(
-            makespan=max(finished) if done and finished else None,
-            last_delivery=max((d for d in delivered if d is not None), default=0),
-            completed=done and not left,
+        return world_result(
+            [self.records[a.id] for a in self.scenario.agents],
+            objects,
+            done=self.done,
+            left=self.undeliverable(),
+            required={i: o.spec.required for i, o in self.objects.items()},
+            failed=self.failed,
             steps=self.t,
-            agents=agents,
-            objects=objects,
-            rejections=list(self.rejections),
-            failures=[{"agent": a, "step": t} for a, t in sorted(self.failed.items())],
+            rejections=self.rejections,
             **extra,
         )
-        if done and left:
-            need = max(self.objects[i].spec.required for i in left)
-            result.error = (
-                f"{len(left)} of {len(objects)} objects cannot be delivered: objects "
-                f"{left} need up to {need} robots and {self.survivors} survive (agents "
-                f"{sorted(self.failed)} failed)"
-            )
-        return result

@@ -227,28 +227,6 @@ class WorldRuntime:
             result.error = self.aborted or "every agent failed"
             return result
         return result_from_reports(self.world, reports, self.messages, self.protocol)
-        first = reports[0]
-        agreement = all(r.view == first.view for r in reports)
-        found: dict[int, int] = {}
-        for r in reports:  # CCP: everyone knows every find; HCP: each owner knows its own
-            for oid, t in r.found:
-                found[oid] = min(t, found.get(oid, t))
-        warnings = [f"agent {r.agent}: {w}" for r in reports for w in r.warnings]
-        schedule = [Assignment(e.object, tuple(e.agents), e.start, e.finish) for e in first.schedule]
-        result = self.world.result(
-            protocol=first.protocol,
-            trigger=first.trigger,
-            predicted_makespan=first.predicted_makespan,
-            coordinations=first.coordinations,
-            messages=self.messages,
-            agreement=agreement,
-            warnings=warnings,
-            found=dict(sorted(found.items())),
-            schedule=schedule,
-        )
-        if not result.completed and result.error is None:
-            result.error = f"not finished after {self.world.t} steps (deadlock or step limit)"
-        return result
 
 
 def result_from_reports(

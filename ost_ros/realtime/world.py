@@ -39,7 +39,7 @@ import numpy as np
 
 from ost_ros.model import Cell, Scenario, group_period, manhattan
 from ost_ros.realtime.messages import FINISH_STATE, SEARCHING_STATE, Lost, ObjectInfo
-from ost_ros.result import AgentRecord, ObjectRecord, RunResult
+from ost_ros.result import AgentRecord, ObjectRecord, RunResult, world_result
 from ost_ros.search import route
 from ost_ros.sensing import BLOCK, first_sensing
 
@@ -825,31 +825,18 @@ class RealtimeWorld:
         return math.ceil(self.end - EPS) + 1 if self.done else math.ceil(self.end - EPS)
 
     def result(self, **extra: Any) -> RunResult:
-        agents = [self.record(a.id) for a in self.scenario.agents]
         objects = [
             ObjectRecord(o.spec.id, o.carriers, _num(o.start), _num(o.delivered))
             for o in sorted(self.objects.values(), key=lambda o: o.spec.id)
         ]
-        finished = [r.finished for r in agents if r.id not in self.failed and r.finished is not None]
-        delivered = [o.delivered for o in objects if o.delivered is not None]
-        done = self.done
-        left = self.undeliverable()
-        result = RunResult(
-            makespan=max(finished) if done and finished else None,
-            last_delivery=max(delivered, default=0),
-            completed=done and not left,
+        return world_result(
+            [self.record(a.id) for a in self.scenario.agents],
+            objects,
+            done=self.done,
+            left=self.undeliverable(),
+            required={i: o.spec.required for i, o in self.objects.items()},
+            failed=self.failed,
             steps=self.t,
-            agents=agents,
-            objects=objects,
-            rejections=list(self.refusals),
-            failures=[{"agent": a, "step": t} for a, t in sorted(self.failed.items())],
+            rejections=self.refusals,
             **extra,
         )
-        if done and left:
-            need = max(self.objects[i].spec.required for i in left)
-            result.error = (
-                f"{len(left)} of {len(objects)} objects cannot be delivered: objects "
-                f"{left} need up to {need} robots and {self.survivors} survive (agents "
-                f"{sorted(self.failed)} failed)"
-            )
-        return result
