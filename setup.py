@@ -48,7 +48,6 @@ setup(
         "pillow",
         "tqdm",
         "cryptography",
-        "PyNaCl",
         "mcap",
         "foxglove-sdk",
         "imageio-ffmpeg",

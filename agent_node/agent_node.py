@@ -40,7 +40,7 @@ from ost_ros.team import TeamInfo
 WORLD_LOST_S = 10.0
 # A tick held this long for peers' step messages is reported (whose are missing).
 STALL_S = 5.0
-# Peers' signed samples kept for relaying: the newest steps (the runtime relays from its last 3).
+# Peers' sealed samples kept for relaying: the newest steps (the runtime relays from its last 3).
 RELAY_STEPS = 8
 
 
@@ -91,14 +91,16 @@ class AgentRunner:
         self.rediscover_s = node.get_parameter("rediscover_s").value
         me = runtime.me
         self.guard = node_auth(node.get_parameter("keys").value, node.get_parameter("insecure").value, me)
-        # Peers' samples as received (signed by them): what this agent relays for a peer that a
-        # third one lacks (Resend) must carry the peer's own signature. The newest steps only.
-        self.originals: dict[int, dict[tuple[int, int], object]] = {}
+        # Peers' samples as received (sealed by them): what this agent relays for a peer that a
+        # third one lacks (Resend) must carry the peer's own tags, byte for byte. The newest
+        # steps only.
+        self.originals: dict[int, dict[tuple[int, int], bytes]] = {}
         self.report_sent: AgentReport | None = None
         self.result_seen = False
         q = tp.LOCKSTEP_QOS
         self.tick_topic = tp.tick_topic(me)
-        pub, sub = tp.no_events_pub, tp.no_events_sub
+        pub = tp.no_events_pub
+        g, th = self.guard, self.throttle
         self.pub_acted = node.create_publisher(wire.ros_type(Acted), tp.ACTED, q, event_callbacks=pub())
         self.pub_ready = node.create_publisher(
             wire.ros_type(Ready), tp.READY, tp.LATCHED_ALL_QOS, event_callbacks=pub()
@@ -106,17 +108,11 @@ class AgentRunner:
         self.pub_report = node.create_publisher(
             wire.ros_type(AgentReport), tp.REPORTS, tp.LATCHED_ALL_QOS, event_callbacks=pub()
         )
-        self.sub_tick = node.create_subscription(
-            wire.ros_type(Tick), self.tick_topic, self.on_tick, q, event_callbacks=sub()
-        )
+        self.sub_tick = tp.subscribe(node, Tick, self.tick_topic, self.on_tick, q, g, th)
         self.pub_resend = node.create_publisher(wire.ros_type(Resend), tp.RESEND, q, event_callbacks=pub())
-        self.sub_resend = node.create_subscription(
-            wire.ros_type(Resend), tp.RESEND, self.on_resend, q, event_callbacks=sub()
-        )
+        self.sub_resend = tp.subscribe(node, Resend, tp.RESEND, self.on_resend, q, g, th)
         self.resent_at: float | None = None
-        self.sub_end = node.create_subscription(
-            wire.ros_type(RunEnd), tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS, event_callbacks=sub()
-        )
+        self.sub_end = tp.subscribe(node, RunEnd, tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS, g, th)
         # One topic per message kind of the protocol (object_found, selection, ...), every agent
         # publishing and subscribing: all of them are part of the step's barrier.
         self.kind_pubs = {
@@ -124,12 +120,16 @@ class AgentRunner:
             for kind in runtime.kinds
         }
         self.kind_subs = [
-            node.create_subscription(
-                wire.ros_type(kind),
+            # keep_bytes: a peer's sample may have to be relayed as it came
+            tp.subscribe(
+                node,
+                kind,
                 tp.message_topic(kind),
                 functools.partial(self.on_sample, kind=kind),
                 q,
-                event_callbacks=sub(),
+                g,
+                th,
+                keep_bytes=True,
             )
             for kind in runtime.kinds
         ]
@@ -212,7 +212,7 @@ class AgentRunner:
                 # One sample asserts this robot's liveliness at once (the world waits for it)
                 self.say_alive()
                 ready = Ready(self.rt.me, self.protocol, self.fingerprint, self.organisation)
-                self.guard.publish(self.pub_ready, wire.to_ros(ready))
+                self.guard.publish(self.pub_ready, ready)
                 self.ready_sent = True
                 self.world_seen = True
                 self.node.get_logger().info(f"ready: {self.n} agents and the world matched")
@@ -230,7 +230,7 @@ class AgentRunner:
             self.held_since = self.held_since or now
             if now - self.held_since > tp.RESEND_S and now - (self.resent_at or 0.0) > tp.RESEND_S:
                 resend = Resend(self.rt.me, self.rt.last, held[1], self.rt.run or "")
-                self.guard.publish(self.pub_resend, wire.to_ros(resend))
+                self.guard.publish(self.pub_resend, resend)
                 self.resent_at = now
             if now - self.held_since > STALL_S:
                 self.throttle.note(
@@ -267,53 +267,50 @@ class AgentRunner:
             if isinstance(out, Sample):
                 pub = self.kind_pubs[type(out.message)]
                 if out.message.sender == self.rt.me or not self.guard.secure:
-                    self.guard.publish(pub, wire.to_ros(out))
+                    self.guard.publish(pub, out)
                     continue
-                # A peer's sample relayed: as the peer signed it (this agent cannot sign for it;
+                # A peer's sample relayed: as the peer sealed it (this agent cannot seal for it;
                 # one no longer held is left to the peer's own resend).
                 original = self.originals.get(out.step, {}).get((out.message.sender, out.seq))
                 if original is not None:
-                    pub.publish(original)
+                    self.guard.relay(pub, original)
             elif isinstance(out, Acted):
-                self.guard.publish(self.pub_acted, wire.to_ros(out))
+                self.guard.publish(self.pub_acted, out)
             else:
                 if self.report_sent is None:  # the drops so far, fixed: a re-sent report is the same
                     self.report_sent = dataclasses.replace(out, dropped=tuple(self.guard.counts().values()))
-                self.guard.publish(self.pub_report, wire.to_ros(self.report_sent))
+                self.guard.publish(self.pub_report, self.report_sent)
                 self.node.get_logger().info(f"run ended; report sent ({self.rt.sent} messages)")
 
-    def _feed(self, msg, topic: str, accept) -> None:
-        m = tp.from_ros_or_warn(msg, topic, self.throttle, self.guard)
-        if m is None:
-            return
+    def _feed(self, m, topic: str, accept, data: bytes | None = None) -> None:
         try:
             accept(m)
         except ProtocolViolation as exc:
-            self.throttle.warn(topic, wire.sender_of(msg), str(exc))
+            self.throttle.warn(topic, tp.sender_of(m), str(exc))
             return
-        if self.guard.secure and isinstance(m, Sample) and m.message.sender != self.rt.me:
-            self.originals.setdefault(m.step, {})[(m.message.sender, m.seq)] = msg
+        if data is not None and self.guard.secure and m.message.sender != self.rt.me:
+            self.originals.setdefault(m.step, {})[(m.message.sender, m.seq)] = data
             while len(self.originals) > RELAY_STEPS:
                 del self.originals[min(self.originals)]
         self._progress()
 
-    def on_tick(self, msg) -> None:
-        if 0 <= self.die_at <= msg.t:  # fault injection: die as a robot does, with no last word
+    def on_tick(self, tick: Tick) -> None:
+        if 0 <= self.die_at <= tick.t:  # fault injection: die as a robot does, with no last word
             self.node.get_logger().warning(
-                f"die_at_step {self.die_at}: killing this process (SIGKILL) on the tick of step {msg.t}"
+                f"die_at_step {self.die_at}: killing this process (SIGKILL) on the tick of step {tick.t}"
             )
             sys.stderr.flush()
             os.kill(os.getpid(), signal.SIGKILL)
-        self._feed(msg, self.sub_tick.topic_name, self.rt.accept_tick)
+        self._feed(tick, self.sub_tick.topic_name, self.rt.accept_tick)
 
-    def on_sample(self, msg, kind: type) -> None:
-        self._feed(msg, self.kind_pubs[kind].topic_name, self.rt.accept_sample)
+    def on_sample(self, sample: Sample, data: bytes, kind: type) -> None:
+        self._feed(sample, self.kind_pubs[kind].topic_name, self.rt.accept_sample, data)
 
-    def on_resend(self, msg) -> None:
-        self._feed(msg, self.sub_resend.topic_name, self.rt.accept_resend)
+    def on_resend(self, resend: Resend) -> None:
+        self._feed(resend, self.sub_resend.topic_name, self.rt.accept_resend)
 
-    def on_end(self, msg) -> None:
-        self._feed(msg, self.sub_end.topic_name, self.rt.accept_end)
+    def on_end(self, end: RunEnd) -> None:
+        self._feed(end, self.sub_end.topic_name, self.rt.accept_end)
 
     def on_result(self, msg: String) -> None:
         # The world has every report: this agent's job is over. A result before this agent

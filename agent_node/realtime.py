@@ -71,7 +71,7 @@ class RealtimeAgentNode(Node):
         self.rt.remote_base = True
         self.fingerprint = tp.scenario_fingerprint(scenario)
         self.guard = node_auth(p["keys"], p["insecure"], me)
-        self.run = self.guard.signer.run if self.guard.signer is not None else ""
+        self.run = self.guard.run or ""
         self.rtf = float(p["rtf"])
         self.throttle = tp.Throttle(self.get_logger())
         self.done = False
@@ -111,37 +111,63 @@ class RealtimeAgentNode(Node):
 
     def _build_endpoints(self) -> None:
         q, me = tp.LOCKSTEP_QOS, self.me
+        g, th = self.guard, self.throttle
+
+        def other_run(m) -> bool:  # (checked before the replay window: tp.Receiver)
+            return m.run != self.run
+
+        def not_for_me(m) -> bool:
+            return m.run != self.run or m.sender == self.me
+
         self.kind_pubs: dict[type, Any] = {}
         self.kind_subs = []
         for kind in rtp.message_kinds(self.p["protocol"]):
             topic = tp.message_topic(kind)
             self.kind_pubs[kind] = self.create_publisher(wire.ros_type(kind), topic, q)
             self.kind_subs.append(
-                self.create_subscription(
-                    wire.ros_type(kind),
+                tp.subscribe(
+                    self,
+                    kind,
                     topic,
                     functools.partial(self.on_sample, self.resolve_topic_name(topic)),
                     q,
+                    g,
+                    th,
+                    events=True,
+                    # (a copy it has: the world publishes a failed robot's messages again)
+                    skip=lambda m: not_for_me(m) or self.rt.batches.seen(m.sender, m.seq),
                 )
             )
         self.pub_marks = self.create_publisher(wire.ros_type(Mark), rtp.MARKS, q)
-        self.sub_marks = self.create_subscription(wire.ros_type(Mark), rtp.MARKS, self.on_mark, q)
+        self.sub_marks = tp.subscribe(
+            self, Mark, rtp.MARKS, self.on_mark, q, g, th, skip=not_for_me, events=True
+        )
         self.pub_needs = self.create_publisher(wire.ros_type(Need), rtp.NEEDS, q)
-        self.sub_needs = self.create_subscription(wire.ros_type(Need), rtp.NEEDS, self.on_need, q)
-        self.sub_lost = self.create_subscription(
-            wire.ros_type(Lost), rtp.LOST, self.on_lost, tp.LATCHED_ALL_QOS
+        self.sub_needs = tp.subscribe(
+            self, Need, rtp.NEEDS, self.on_need, q, g, th, skip=not_for_me, events=True
+        )
+        self.sub_lost = tp.subscribe(
+            self, Lost, rtp.LOST, self.on_lost, tp.LATCHED_ALL_QOS, g, th, skip=other_run, events=True
         )
         self.pub_digests = self.create_publisher(wire.ros_type(Digest), rtp.DIGESTS, q)
         self.sub_clock = self.create_subscription(Clock, tp.CLOCK, self.on_clock, tp.LATEST_QOS)
-        self.sub_det = self.create_subscription(
-            wire.ros_type(Detection), rtp.detections_topic(me), self.on_detection, q
+        self.sub_det = tp.subscribe(
+            self,
+            Detection,
+            rtp.detections_topic(me),
+            self.on_detection,
+            q,
+            g,
+            th,
+            skip=other_run,
+            events=True,
         )
         self.base = ActionClient(self, FollowCells, rtp.follow_action(me))
         self.where = self.create_client(Where, rtp.where_service(me))
         self.pub_ready = self.create_publisher(wire.ros_type(Ready), tp.READY, tp.LATCHED_ALL_QOS)
         self.pub_report = self.create_publisher(wire.ros_type(AgentReport), tp.REPORTS, tp.LATCHED_ALL_QOS)
-        self.sub_end = self.create_subscription(
-            wire.ros_type(RunEnd), tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS
+        self.sub_end = tp.subscribe(
+            self, RunEnd, tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS, g, th, events=True
         )
         self.sub_result = self.create_subscription(String, tp.RESULT, self.on_result, tp.RESULT_QOS)
         lease = self.p["failure_timeout"]
@@ -203,7 +229,7 @@ class RealtimeAgentNode(Node):
         if self.pub_alive is not None:
             self.pub_alive.publish(String(data=f"agent {self.me}"))
         ready = Ready(self.me, self.p["protocol"], self.fingerprint, self.p["coordination"])
-        self.guard.publish(self.pub_ready, wire.to_ros(ready))
+        self.guard.publish(self.pub_ready, ready)
 
     def base_warm(self, wall: float) -> bool:
         """Whether a goal's acceptance and result reach this robot: a STAND goal before the run,
@@ -305,33 +331,22 @@ class RealtimeAgentNode(Node):
 
     # ------------------------------------------------------------------ what comes in
 
-    def on_sample(self, topic: str, msg) -> None:
-        if msg.run != self.run or msg.sender == self.me or self.rt.batches.seen(msg.sender, msg.seq):
-            return  # (a copy it has: the world publishes a failed robot's messages again)
-        s = tp.from_ros_or_warn(msg, topic, self.throttle, self.guard)
+    def on_sample(self, topic: str, s: Sample) -> None:
         if isinstance(s, Sample):
             env = Envelope(s.message.sender, int(s.seq), int(s.step), s.message)
             self.take(env)
 
-    def on_mark(self, msg) -> None:
-        if msg.run == self.run and msg.sender != self.me:
-            m = tp.from_ros_or_warn(msg, self.sub_marks.topic_name, self.throttle, self.guard)
-            if m is not None:
-                self.take(m)
+    def on_mark(self, m: Mark) -> None:
+        self.take(m)
 
-    def on_need(self, msg) -> None:
-        if msg.run == self.run and msg.sender != self.me:
-            m = tp.from_ros_or_warn(msg, self.sub_needs.topic_name, self.throttle, self.guard)
-            if m is not None:
-                self.take(m)
+    def on_need(self, m: Need) -> None:
+        self.take(m)
 
-    def on_lost(self, msg) -> None:
-        if msg.run == self.run:
-            m = tp.from_ros_or_warn(msg, self.sub_lost.topic_name, self.throttle, self.guard)
-            if m is not None and m.agent == self.me:
-                self.declared_failed(m)
-            elif m is not None:
-                self.take(m)
+    def on_lost(self, m: Lost) -> None:
+        if m.agent == self.me:
+            self.declared_failed(m)
+        else:
+            self.take(m)
 
     def declared_failed(self, notice: Lost) -> None:
         """The world has declared this robot failed (its liveliness lapsed: a lossy link, a stall
@@ -358,11 +373,8 @@ class RealtimeAgentNode(Node):
             except LateMessage as exc:  # a peer broke its watermark: said, never a crash
                 self.throttle.note(("late", str(getattr(payload, "sender", "?"))), f"dropped: {exc}")
 
-    def on_detection(self, msg) -> None:
-        if msg.run != self.run:
-            return
-        d = tp.from_ros_or_warn(msg, self.sub_det.topic_name, self.throttle, self.guard)
-        if d is not None and self.started:
+    def on_detection(self, d: Detection) -> None:
+        if self.started:
             if os.environ.get("OST_RT_DEBUG"):
                 self.get_logger().info(f"t={self._now:.1f} detection {d}")
             self.out(self.rt.on_detection(d, self.now()))
@@ -376,7 +388,7 @@ class RealtimeAgentNode(Node):
             if isinstance(o, Publish):
                 self.publish(o.payload)
             elif isinstance(o, Digest):
-                self.guard.publish(self.pub_digests, wire.to_ros(o, run=self.run))
+                self.guard.publish(self.pub_digests, o, run=self.run)
             elif isinstance(o, SendGoal):
                 self.send_goal(o)
             elif isinstance(o, AskFeedback):
@@ -403,13 +415,13 @@ class RealtimeAgentNode(Node):
         if isinstance(payload, Envelope):
             kind = type(payload.message)
             sample = Sample(payload.message, payload.stamp, payload.seq, self.run)
-            self.guard.publish(self.kind_pubs[kind], wire.to_ros(sample))
+            self.guard.publish(self.kind_pubs[kind], sample)
             self.said["messages"] += 1
         elif isinstance(payload, Mark):
-            self.guard.publish(self.pub_marks, wire.to_ros(payload, run=self.run))
+            self.guard.publish(self.pub_marks, payload, run=self.run)
             self.said["marks"] += 1
         else:
-            self.guard.publish(self.pub_needs, wire.to_ros(payload, run=self.run))
+            self.guard.publish(self.pub_needs, payload, run=self.run)
             self.said["needs"] += 1
 
     def send_goal(self, o: SendGoal) -> None:
@@ -512,9 +524,8 @@ class RealtimeAgentNode(Node):
 
     # ------------------------------------------------------------------ the end
 
-    def on_end(self, msg) -> None:
-        end = tp.from_ros_or_warn(msg, self.sub_end.topic_name, self.throttle, self.guard)
-        if end is None or end.run != self.run or self.report_sent:
+    def on_end(self, end: RunEnd) -> None:
+        if end.run != self.run or self.report_sent:
             return
         self.report_sent = True
         k = self.rt.agent.summary()
@@ -533,7 +544,7 @@ class RealtimeAgentNode(Node):
             dropped=tuple(self.guard.counts().values()),
             lag=float(self.rt.max_lag),
         )
-        self.guard.publish(self.pub_report, wire.to_ros(report))
+        self.guard.publish(self.pub_report, report)
         said = ", ".join(f"{n} {what}" for what, n in self.said.items())
         self.get_logger().info(
             f"report sent: published {said}; took {len(self.rt.processed)} batches; "

@@ -1,62 +1,82 @@
 """Authenticated messages: who may speak for whom in a run (docs/ros.md, "Authenticated messages").
 
-A secure run has key material made for it (:func:`make_keys`, ``ost keys make``): one Ed25519
-signing key per robot and one for the world, each in a file of its own (``agent_<i>.key``,
-``world.key``, mode 0600), and ``team.yaml`` — the run id and every public key — which every
-process reads. Every message of the lockstep and of the protocols ends with an ``ost_msgs/Auth``
-(signer, counter, signature). The signature covers the run id, the topic, the interface's name,
-the signer, the counter and every other field (:func:`canonical`), so a message cannot be moved
-to another topic, run or sender, nor altered.
+A secure run has key material made for it (:func:`make_keys`, ``ost keys make``): one X25519 key
+per robot and one for the world, each in a file of its own (``agent_<i>.key``, ``world.key``,
+mode 0600), and ``team.yaml`` — the run id and every public key — which every process reads.
+Any two members s and r share a secret nobody else can compute, X25519 of s's private key and
+r's public key (the same as r's private and s's public); through a KDF bound to the run and to
+the ordered pair it is the key K(s→r) with which s authenticates what it says to r
+(:func:`pair_key`). No handshake: each node derives its keys once, at start (:class:`Keys`).
 
-A receiver (:class:`Verifier`) accepts a message only if
+Every message of the lockstep and of the protocols ends with an ``ost_msgs/Auth`` — counter,
+signer, a vector of 16-byte tags, one slot per team member (the world first, then the agents by
+id) — so its serialized bytes end with counter (8 bytes), signer (4), the vector's length (4) and
+the tags, with no padding between them. The sender (:class:`Sealer`) computes one digest of the
+message, D = BLAKE2b-256 over :data:`DOMAIN`, the fully-qualified topic and every byte before the
+tags (padding included: everyone receives the same bytes), and the tag of receiver r = keyed
+BLAKE2b-128 of D under K(sender→r) — the receiver-specific MACs of the OMG DDS Security
+specification. The counter is covered, so a message cannot be replayed under a fresh counter,
+and so is the topic: a message cannot be moved to another topic, run or sender, nor altered.
 
-- it is signed (``unsigned`` otherwise),
-- by the sender it claims — the world for ``Tick``/``RunEnd``/``RunInfo``, the agent named in it
-  for everything else — with that signer's key from ``team.yaml`` (``forged`` otherwise),
-- and its counter was not seen before from that signer (``replayed`` otherwise). Counters start
-  at the signer's start time in ns and count up, so a restarted world continues above its old
-  ones; the receiver remembers the last :data:`WINDOW` counters of each signer (a bitmap) and
-  refuses anything older, so memory stays bounded however long the run.
+A receiver (:class:`Checker`) accepts a message only if
 
-Nothing here imports ROS: a message is anything with ``get_fields_and_field_types()`` (the
-generated ``ost_msgs`` classes).
+- it carries a tag vector of the team's size (``unsigned`` if it has none),
+- its own slot holds the tag of D under the key it shares with the signer (``forged`` otherwise),
+- its counter was not seen before from that signer (``replayed`` otherwise). Counters start at
+  the signer's start time in ns and count up, so a restarted world continues above its old
+  ones; the receiver remembers the last :data:`WINDOW` counters of each signer and refuses
+  anything older, so memory stays bounded however long the run;
+
+and the node then checks that the signer is the sender the message claims (:func:`claimed_signer`):
+the world for ``Tick``/``RunEnd``/``RunInfo`` (and a realtime run's ``Detection``/``Lost``), the
+agent named in it for everything else.
+
+What MACs give up against signatures: whoever holds robot A's key can make A accept a message in
+any member's name (A's keys with everyone are its own) — never another robot; a message no
+longer proves to a third party what its sender said, and a recording cannot be checked offline.
+A message relayed byte for byte (a dead robot's, by the world) still carries every receiver's tag.
+
+Nothing here imports ROS: the tags are over bytes.
 """
 
 from __future__ import annotations
 
-import array
-import functools
+import hashlib
+import hmac
 import os
 import secrets
 import stat
 import struct
-import sys
 import time
-from collections import Counter
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import yaml
 from cryptography.hazmat.primitives import serialization
-from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
-from nacl.exceptions import BadSignatureError
-from nacl.signing import SigningKey, VerifyKey
+from cryptography.hazmat.primitives.asymmetric.x25519 import X25519PrivateKey, X25519PublicKey
 
 from ost_msgs_py.errors import InterfaceError
 from ost_ros.yamlload import safe_load
 
 WORLD = -1  # the world's signer id
 TEAM_FILE = "team.yaml"
-WINDOW = 1 << 16  # counters of each signer remembered by a receiver (a bitmap of this many bits)
+WINDOW = 1 << 16  # counters of each signer remembered by a receiver
+TAG = 16  # bytes of one receiver's tag
 # Interfaces only the world sends; every other one names its agent (see claimed_signer).
 WORLD_TYPES = frozenset({"Tick", "RunEnd", "RunInfo", "Detection", "Lost"})  # (realtime: the last two)
-DOMAIN = b"ost-auth-1\0"  # what the signed bytes start with: no other use of a key can collide
+DOMAIN = b"ost-mac-1\0"  # what the digest of a message starts with: no other use of it can collide
+_KDF_PERSON = b"ost-pair-key-1"  # BLAKE2b personalisation of the pairwise key derivation
+_PAIR = struct.Struct("<ii")
+_U32 = struct.Struct("<I")
+_I32 = struct.Struct("<i")
+_TRAILER = 16  # counter, signer, the tag vector's length: the bytes before the tags
+_NO_TAG = bytes(TAG)
 
-# Why a message was dropped: the three counts of a run's transport stats.
-UNSIGNED, FORGED, REPLAYED = "unsigned", "forged", "replayed"
-REASONS = (UNSIGNED, FORGED, REPLAYED)
+# Why a message was dropped: the counts of a run's transport stats (AgentReport.dropped, in order).
+UNSIGNED, FORGED, REPLAYED, MALFORMED = "unsigned", "forged", "replayed", "malformed"
+REASONS = (UNSIGNED, FORGED, REPLAYED, MALFORMED)
 
 
 class AuthError(InterfaceError):
@@ -77,15 +97,19 @@ def signer_name(signer: int) -> str:
 
 @dataclass(frozen=True)
 class Team:
-    """The public half of a run's key material: its run id and every signer's public key."""
+    """The public half of a run's key material: its run id and every member's public key."""
 
     run: str
-    keys: dict[int, Ed25519PublicKey]
+    keys: dict[int, X25519PublicKey]
+
+    @property
+    def members(self) -> tuple[int, ...]:
+        """The tag vector's slots in order: the world, then the agents by id."""
+        return (WORLD, *sorted(i for i in self.keys if i != WORLD))
 
 
-def _public_hex(key: Ed25519PublicKey) -> str:
-    raw = key.public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw)
-    return raw.hex()
+def _public_hex(key: X25519PublicKey) -> str:
+    return key.public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw).hex()
 
 
 def make_keys(directory: str | Path, ids: Iterable[int], run: str | None = None) -> Team:
@@ -94,9 +118,9 @@ def make_keys(directory: str | Path, ids: Iterable[int], run: str | None = None)
     d = Path(directory)
     d.mkdir(mode=0o700, parents=True, exist_ok=True)
     run = run or secrets.token_hex(6)
-    public: dict[int, Ed25519PublicKey] = {}
+    public: dict[int, X25519PublicKey] = {}
     for signer in (WORLD, *sorted(set(ids))):
-        key = Ed25519PrivateKey.generate()
+        key = X25519PrivateKey.generate()
         pem = key.private_bytes(
             serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption()
         )
@@ -111,16 +135,16 @@ def make_keys(directory: str | Path, ids: Iterable[int], run: str | None = None)
         "world": _public_hex(public[WORLD]),
         "agents": {i: _public_hex(k) for i, k in public.items() if i != WORLD},
     }
-    text = "# The run's public keys (Ed25519, raw hex) and its id: every process of the run reads this.\n"
+    text = "# The run's public keys (X25519, raw hex) and its id: every process of the run reads this.\n"
     (d / TEAM_FILE).write_text(text + yaml.safe_dump(doc, sort_keys=False))
     return Team(run, public)
 
 
-def _public_key(text: Any, where: str) -> Ed25519PublicKey:
+def _public_key(text: Any, where: str) -> X25519PublicKey:
     try:
-        return Ed25519PublicKey.from_public_bytes(bytes.fromhex(str(text)))
+        return X25519PublicKey.from_public_bytes(bytes.fromhex(str(text)))
     except ValueError:
-        raise AuthError(f"{where}: not an Ed25519 public key (64 hex digits)") from None
+        raise AuthError(f"{where}: not an X25519 public key (64 hex digits)") from None
 
 
 def load_team(directory: str | Path) -> Team:
@@ -142,8 +166,8 @@ def load_team(directory: str | Path) -> Team:
     return Team(str(doc["run"]), keys)
 
 
-def load_private(directory: str | Path, signer: int) -> Ed25519PrivateKey:
-    """The signer's own private key (its file must not be readable by group or others)."""
+def load_private(directory: str | Path, signer: int) -> X25519PrivateKey:
+    """The member's own private key (its file must not be readable by group or others)."""
     path = Path(directory) / f"{key_name(signer)}.key"
     try:
         mode = path.stat().st_mode
@@ -156,108 +180,187 @@ def load_private(directory: str | Path, signer: int) -> Ed25519PrivateKey:
         key = serialization.load_pem_private_key(data, password=None)
     except (ValueError, TypeError):
         raise AuthError(f"{path}: not a PEM private key") from None
-    if not isinstance(key, Ed25519PrivateKey):
-        raise AuthError(f"{path}: not an Ed25519 key")
+    if not isinstance(key, X25519PrivateKey):
+        raise AuthError(f"{path}: not an X25519 key (made by an older `ost keys make`? make new keys)")
     return key
 
 
-# ----------------------------------------------------------------------------- signed bytes
-
-_SCALARS = {
-    "boolean": "?", "octet": "B", "char": "B", "byte": "B", "uint8": "B", "int8": "b",
-    "uint16": "H", "int16": "h", "uint32": "I", "int32": "i", "uint64": "Q", "int64": "q",
-    "float": "f", "double": "d", "float32": "f", "float64": "d",
-}  # fmt: skip
-# array.array codes of the same sizes (booleans as bytes); little-endian like struct's "<"
-_ARRAYS = {**_SCALARS, "boolean": "B"}
-_BIG = sys.byteorder == "big"  # arrays are signed little-endian on every machine
-_LEN = struct.Struct("<I")
-_HEAD = struct.Struct("<iQ")
-
-Encode = Callable[[Any, bytearray], None]
-_ENCODERS: dict[type, list[tuple[str, Encode]]] = {}
+def pair_key(shared: bytes, run: str, sender: int, receiver: int) -> bytes:
+    """K(sender→receiver): the X25519 secret the two share, bound to the run and to the ordered
+    pair (what s says to r and what r says to s are told apart)."""
+    data = _PAIR.pack(sender, receiver) + run.encode()
+    return hashlib.blake2b(data, key=shared, digest_size=32, person=_KDF_PERSON).digest()
 
 
-def _text(value: str, out: bytearray) -> None:
-    data = value.encode("utf-8", "surrogatepass")
-    out += _LEN.pack(len(data))
-    out += data
+class Keys:
+    """One member's pairwise keys with every member of the team (itself included), derived once:
+    K(me→r) to seal, K(s→me) to check; each kept as a keyed BLAKE2b state that every message
+    copies (cheaper than keying a new one)."""
+
+    def __init__(self, team: Team, me: int, key: X25519PrivateKey):
+        if me not in team.keys:
+            raise AuthError(f"{TEAM_FILE}: no key for {signer_name(me)}")
+        self.run, self.me, self.members = team.run, me, team.members
+        self.send: dict[int, Any] = {}
+        self.receive: dict[int, Any] = {}
+        for other in self.members:
+            try:
+                shared = key.exchange(team.keys[other])
+            except ValueError:  # a low-order point: no secret (cryptography refuses the all-zero one)
+                raise AuthError(
+                    f"{TEAM_FILE}: {signer_name(other)}: not a usable X25519 public key"
+                ) from None
+            self.send[other] = _mac(pair_key(shared, team.run, me, other))
+            self.receive[other] = _mac(pair_key(shared, team.run, other, me))
 
 
-@functools.lru_cache(maxsize=4096)
-def _text_bytes(value: str) -> bytes:
-    data = value.encode("utf-8", "surrogatepass")
-    return _LEN.pack(len(data)) + data
+def digest(topic: str, body: bytes | bytearray | memoryview) -> bytes:
+    """D, what every tag of a message is computed over: BLAKE2b-256 of :data:`DOMAIN`, the topic
+    and ``body`` (the message's bytes before its tags). :class:`Sealer` and :class:`Checker`
+    compute the same from a state kept per topic."""
+    h = _digest_start(topic)
+    h.update(body)
+    return h.digest()
 
 
-def _texts(v: Any, out: bytearray) -> None:
-    # A plan's states repeat (a few distinct strings in 1 024 steps): each encoded once.
-    out += _LEN.pack(len(v))
-    out += b"".join(map(_text_bytes, v))
+def tag(key: bytes, d: bytes) -> bytes:
+    """The tag of digest ``d`` under a pairwise key: keyed BLAKE2b, :data:`TAG` bytes."""
+    return hashlib.blake2b(d, key=key, digest_size=TAG).digest()
 
 
-def _field(field_type: str) -> Encode:
-    """How one field of the given ROS type goes into the signed bytes."""
-    if field_type == "sequence<string>":
-        return _texts
-    if field_type in _SCALARS:
-        s = struct.Struct("<" + _SCALARS[field_type])
-        return lambda v, out: out.extend(s.pack(v))
-    if field_type == "string":
-        return _text
-    if field_type.startswith("sequence<") and field_type.endswith(">"):
-        inner = field_type[len("sequence<") : -1]
-        if inner in _ARRAYS:
-            code = _ARRAYS[inner]
-
-            def prims(v: Any, out: bytearray) -> None:
-                a = v if isinstance(v, array.array) and v.typecode == code else array.array(code, v)
-                if _BIG and a.itemsize > 1:
-                    a = array.array(code, a)
-                    a.byteswap()
-                out += _LEN.pack(len(a))
-                out += a.tobytes()
-
-            return prims
-        elem = _field(inner)
-
-        def seq(v: Any, out: bytearray) -> None:
-            out += _LEN.pack(len(v))
-            for x in v:
-                elem(x, out)
-
-        return seq
-    if "/" in field_type:  # a nested message
-        return lambda v, out: _message(v, out)
-    raise TypeError(f"no signed encoding for the ROS field type {field_type!r}")
+def _mac(key: bytes) -> Any:
+    return hashlib.blake2b(key=key, digest_size=TAG)
 
 
-def _encoders(cls: type) -> list[tuple[str, Encode]]:
-    known = _ENCODERS.get(cls)
-    if known is None:
-        fields = cls.get_fields_and_field_types()  # type: ignore[attr-defined]
-        known = _ENCODERS[cls] = [(name, _field(t)) for name, t in fields.items() if name != "auth"]
-    return known
+def _digest_start(topic: str) -> Any:
+    """The digest's state after :data:`DOMAIN` and the topic (copied per message)."""
+    return hashlib.blake2b(DOMAIN + topic.encode() + b"\0", digest_size=32)
 
 
-def _message(msg: Any, out: bytearray) -> None:
-    for name, encode in _encoders(type(msg)):
-        encode(getattr(msg, name), out)
+# ----------------------------------------------------------------------------- seal, check
 
 
-def canonical(msg: Any) -> bytes:
-    """Every field of a message but ``auth``, in declaration order: integers and floats
-    little-endian, strings UTF-8 and sequences each after a uint32 length, nested messages
-    inline. The same message gives the same bytes in every process (unlike CDR, whose padding
-    bytes are not specified)."""
-    out = bytearray()
-    _message(msg, out)
-    return bytes(out)
+class Sealer:
+    """Seals the messages of one member: its id, a fresh counter, and the tag vector."""
+
+    def __init__(self, keys: Keys, start: int | None = None):
+        self.run = keys.run
+        self.signer = keys.me
+        self.size = TAG * len(keys.members)  # bytes of the tag vector
+        self._macs = [keys.send[m] for m in keys.members]
+        self._slot = {m: k for k, m in enumerate(keys.members)}
+        self._topics: dict[str, Any] = {}
+        # From the start time: a restarted process (a resumed world) counts on above its old
+        # counters, which its peers have seen.
+        self.counter = time.time_ns() if start is None else start
+
+    def next(self) -> int:
+        """The counter of the next message (every publish has its own)."""
+        self.counter += 1
+        return self.counter
+
+    def seal(self, data: bytearray, topic: str, receivers: Iterable[int] | None = None) -> None:
+        """Fill in the tag vector that ends ``data`` (:attr:`size` bytes, zeros): for every
+        member, or only for ``receivers`` (a topic one member reads; zeros elsewhere)."""
+        start = len(data) - self.size
+        h = self._topics.get(topic)
+        if h is None:
+            h = self._topics[topic] = _digest_start(topic)
+        h = h.copy()
+        h.update(memoryview(data)[:start])
+        d = h.digest()
+        if receivers is None:
+            tags = []
+            for mac in self._macs:
+                t = mac.copy()
+                t.update(d)
+                tags.append(t.digest())
+            data[start:] = b"".join(tags)
+            return
+        for r in receivers:
+            k = start + TAG * self._slot[r]
+            t = self._macs[self._slot[r]].copy()
+            t.update(d)
+            data[k : k + TAG] = t.digest()
 
 
-def signed_bytes(run: str, topic: str, msg: Any, signer: int, counter: int) -> bytes:
-    head = DOMAIN + f"{run}\0{topic}\0{type(msg).__name__}\0".encode()
-    return head + _HEAD.pack(signer, counter) + canonical(msg)
+class Window:
+    """The counters seen of one signer: the highest, and every one seen above highest − WINDOW
+    (older ones are refused). A set pruned in batches: O(1) per message, at most 5/4 WINDOW
+    entries."""
+
+    __slots__ = ("high", "seen")
+    PRUNE_AT = WINDOW + WINDOW // 4
+
+    def __init__(self) -> None:
+        self.high = -1
+        self.seen: set[int] = set()
+
+    def fresh(self, c: int) -> bool:
+        """``c`` not seen before (and not older than the window): now it is."""
+        if c <= self.high - WINDOW or c in self.seen:
+            return False
+        self.seen.add(c)
+        if c > self.high:
+            self.high = c
+            if len(self.seen) >= self.PRUNE_AT:  # every WINDOW/4 new counters at the most
+                low = c - WINDOW
+                self.seen = {x for x in self.seen if x > low}
+        return True
+
+
+class Checker:
+    """Checks one member's tag on received messages, and each signer's counters."""
+
+    def __init__(self, keys: Keys):
+        self.me = keys.me
+        self.size = TAG * len(keys.members)
+        self._offset = TAG * keys.members.index(keys.me)  # its own slot in the vector
+        self._macs = keys.receive
+        self._topics: dict[str, Any] = {}
+        self.windows: dict[int, Window] = {}
+
+    def check(self, data: bytes, topic: str) -> str | None:
+        """None if ``data`` carries a good tag for this member on ``topic`` from the signer it
+        names; else why not, starting with the reason (unsigned, forged)."""
+        start = len(data) - self.size
+        if start < 4 + _TRAILER or _U32.unpack_from(data, start - 4)[0] != self.size:
+            if len(data) >= 8 and data[-4:] == b"\0\0\0\0":  # a tag vector of length 0
+                return f"{UNSIGNED}: this run accepts sealed messages only"
+            return f"{FORGED}: no tag vector of this team's size ({self.size // TAG} members)"
+        signer = _I32.unpack_from(data, start - 4 - 4)[0]
+        mac = self._macs.get(signer)
+        if mac is None:
+            return f"{FORGED}: {signer_name(signer)} has no key in this run"
+        h = self._topics.get(topic)
+        if h is None:
+            h = self._topics[topic] = _digest_start(topic)
+        h = h.copy()
+        h.update(memoryview(data)[:start])
+        t = mac.copy()
+        t.update(h.digest())
+        k = start + self._offset
+        if hmac.compare_digest(t.digest(), data[k : k + TAG]):
+            return None
+        if data[k : k + TAG] == _NO_TAG:
+            return f"{FORGED}: no tag for {signer_name(self.me)} (sealed for other receivers)"
+        return f"{FORGED}: the tag does not match (another key, run, topic or content)"
+
+    def fresh(self, signer: int, counter: int) -> str | None:
+        """None if ``counter`` is new from ``signer`` (now it is seen); else why not."""
+        window = self.windows.get(signer)
+        if window is None:
+            window = self.windows[signer] = Window()
+        if window.fresh(counter):
+            return None
+        return f"{REPLAYED}: counter {counter} of {signer_name(signer)} seen before"
+
+
+def trailer(data: bytes, size: int) -> tuple[int, int]:
+    """(counter, signer) of a message whose tag vector has ``size`` bytes, read from its end."""
+    start = len(data) - size - _TRAILER
+    counter, signer = struct.unpack_from("<Qi", data, start)
+    return int(counter), int(signer)
 
 
 def claimed_signer(msg: Any) -> int | None:
@@ -272,110 +375,3 @@ def claimed_signer(msg: Any) -> int | None:
             return v
     action = getattr(msg, "action", None)
     return action.agent if action is not None else None
-
-
-# ----------------------------------------------------------------------------- sign, verify
-
-
-class Signer:
-    """Seals the messages of one signer: its id, a fresh counter and the signature in ``auth``."""
-
-    def __init__(self, team: Team, signer: int, key: Ed25519PrivateKey, start: int | None = None):
-        self.run = team.run
-        self.signer = signer
-        self.key = key
-        # Signed with libsodium (PyNaCl), as checked: the same deterministic Ed25519 signature,
-        # faster than through cryptography (Verifier).
-        self._sodium = SigningKey(
-            key.private_bytes(
-                serialization.Encoding.Raw, serialization.PrivateFormat.Raw, serialization.NoEncryption()
-            )
-        )
-        # From the start time: a restarted process (a resumed world) counts on above its old
-        # counters, which its peers have seen.
-        self.counter = time.time_ns() if start is None else start
-
-    def seal(self, msg: Any, topic: str) -> Any:
-        """Sign ``msg`` for ``topic`` in place (every publish gets a new counter); returns it."""
-        self.counter += 1
-        auth = msg.auth
-        auth.signer = self.signer
-        auth.counter = self.counter
-        data = signed_bytes(self.run, topic, msg, self.signer, self.counter)
-        auth.signature = array.array("B", self._sodium.sign(data).signature)
-        return msg
-
-
-class _Window:
-    """The counters seen of one signer: the highest and a bitmap of the :data:`WINDOW` below."""
-
-    __slots__ = ("high", "mask")
-
-    def __init__(self) -> None:
-        self.high = -1
-        self.mask = 0
-
-    def fresh(self, c: int) -> bool:
-        """``c`` not seen before (and not older than the window): now it is."""
-        if c > self.high:
-            shift = c - self.high
-            self.mask = ((self.mask << shift) | 1) & ((1 << WINDOW) - 1) if shift < WINDOW else 1
-            self.high = c
-            return True
-        bit = 1 << (self.high - c) if self.high - c < WINDOW else 0
-        if not bit or self.mask & bit:
-            return False
-        self.mask |= bit
-        return True
-
-
-class Verifier:
-    """Checks received messages against the team's keys; counts what it drops, by reason."""
-
-    def __init__(self, team: Team):
-        self.run = team.run
-        self.keys = team.keys
-        # Checked with libsodium (PyNaCl): the same Ed25519, about half the time of OpenSSL's
-        # through cryptography here (benchmarks/bench_auth.py) — every node checks every message
-        # it receives.
-        self.verify_keys = {
-            i: VerifyKey(k.public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw))
-            for i, k in team.keys.items()
-        }
-        self.windows: dict[int, _Window] = {}
-        self.dropped: Counter[str] = Counter()
-
-    def check(self, msg: Any, topic: str) -> str | None:
-        """None if ``msg`` is genuine and new on ``topic``; else why not (counted), starting
-        with the reason (unsigned, forged, replayed)."""
-        why = self._why(msg, topic)
-        if why is not None:
-            self.dropped[why.split(":", 1)[0]] += 1
-        return why
-
-    def _why(self, msg: Any, topic: str) -> str | None:
-        auth = getattr(msg, "auth", None)
-        if auth is None or len(auth.signature) == 0:
-            return f"{UNSIGNED}: this run accepts signed messages only"
-        claimed = claimed_signer(msg)
-        if claimed is None:
-            return f"{FORGED}: names no sender"
-        if auth.signer != claimed:
-            return f"{FORGED}: signed by {signer_name(auth.signer)}, sent as {signer_name(claimed)}"
-        key = self.verify_keys.get(auth.signer)
-        if key is None:
-            return f"{FORGED}: {signer_name(auth.signer)} has no key in this run"
-        try:
-            data = signed_bytes(self.run, topic, msg, auth.signer, auth.counter)
-            key.verify(data, bytes(auth.signature))
-        except BadSignatureError:
-            return f"{FORGED}: the signature does not match (another key, run, topic or content)"
-        except (TypeError, ValueError, OverflowError, struct.error) as exc:
-            return f"{FORGED}: cannot be checked ({exc})"
-        window = self.windows.setdefault(auth.signer, _Window())
-        if not window.fresh(auth.counter):
-            return f"{REPLAYED}: counter {auth.counter} of {signer_name(auth.signer)} seen before"
-        return None
-
-    def counts(self) -> dict[str, int]:
-        return {r: self.dropped.get(r, 0) for r in REASONS}

@@ -54,7 +54,7 @@ def replay(path: str, on_step: StepHook | None = None) -> Replayed:
         if not rec.type_name.startswith("ost_msgs/"):
             continue
         try:
-            follower.feed(wire.from_ros(bag.decode(rec)))
+            follower.feed(wire.from_cdr(rec.type_name, rec.data))
         except wire.MessageError as exc:
             follower.ignored += 1
             if follower.info is None and rec.type_name == wire.type_name(RunInfo):

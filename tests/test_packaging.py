@@ -25,7 +25,6 @@ LIBRARIES: dict[str, tuple[str, str | None]] = {
     "PIL": ("pillow", "python3-pil"),
     "tqdm": ("tqdm", "python3-tqdm"),
     "cryptography": ("cryptography", "python3-cryptography"),
-    "nacl": ("PyNaCl", None),
     "mcap": ("mcap", None),
     "foxglove": ("foxglove-sdk", None),
     "imageio_ffmpeg": ("imageio-ffmpeg", None),

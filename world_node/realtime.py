@@ -101,7 +101,7 @@ class RealtimeWorldNode(Node):
         self.fingerprint = tp.scenario_fingerprint(scenario)
         self.guard = node_auth(p["keys"], p["insecure"], auth.WORLD)
         # The run id comes with the keys (every process knows it); an insecure run has none.
-        self.run = self.guard.signer.run if self.guard.signer is not None else ""
+        self.run = self.guard.run or ""
         self.rtf = float(p["rtf"])
         self.throttle = tp.Throttle(self.get_logger())
         self.started = self.done = False
@@ -145,11 +145,12 @@ class RealtimeWorldNode(Node):
         self.pub_result = self.create_publisher(String, tp.RESULT, tp.RESULT_QOS)
         self.pub_end = self.create_publisher(wire.ros_type(RunEnd), tp.RUN_END, tp.LATCHED_ALL_QOS)
         self.pub_lost = self.create_publisher(wire.ros_type(rtp.Lost), rtp.LOST, tp.LATCHED_ALL_QOS)
-        self.sub_ready = self.create_subscription(
-            wire.ros_type(Ready), tp.READY, self.on_ready, tp.LATCHED_ALL_QOS
+        g, th = self.guard, self.throttle
+        self.sub_ready = tp.subscribe(
+            self, Ready, tp.READY, self.on_ready, tp.LATCHED_ALL_QOS, g, th, events=True
         )
-        self.sub_report = self.create_subscription(
-            wire.ros_type(AgentReport), tp.REPORTS, self.on_report, tp.LATCHED_ALL_QOS
+        self.sub_report = tp.subscribe(
+            self, AgentReport, tp.REPORTS, self.on_report, tp.LATCHED_ALL_QOS, g, th, events=True
         )
         # Every robot's messages: what it said (its watermark, its count) and, signed, to relay.
         self.kind_pubs: dict[str, Any] = {}
@@ -160,15 +161,30 @@ class RealtimeWorldNode(Node):
                 wire.ros_type(kind), topic, q
             )
             self.kind_subs.append(
-                self.create_subscription(
-                    wire.ros_type(kind),
+                tp.subscribe(
+                    self,
+                    kind,
                     topic,
                     functools.partial(self.on_sample, self.resolve_topic_name(topic)),
                     q,
+                    g,
+                    th,
+                    keep_bytes=True,
+                    events=True,
+                    # (a failed robot's: the world's own copies of its messages)
+                    skip=lambda m: m.run != self.run or m.sender not in self.live,
                 )
             )
-        self.sub_marks = self.create_subscription(wire.ros_type(Mark), rtp.MARKS, self.on_mark, q)
-        self.sub_digests = self.create_subscription(wire.ros_type(Digest), rtp.DIGESTS, self.on_digest, q)
+
+        def other_run(m) -> bool:  # (checked before the replay window: tp.Receiver)
+            return m.run != self.run
+
+        self.sub_marks = tp.subscribe(
+            self, Mark, rtp.MARKS, self.on_mark, q, g, th, skip=other_run, events=True
+        )
+        self.sub_digests = tp.subscribe(
+            self, Digest, rtp.DIGESTS, self.on_digest, q, g, th, skip=other_run, events=True
+        )
         self.servers, self.wheres, self.pub_det, self.pub_pose = {}, {}, {}, {}
         for i in self.ids:
             self.servers[i] = ActionServer(
@@ -210,10 +226,7 @@ class RealtimeWorldNode(Node):
 
     # ------------------------------------------------------------------ start
 
-    def on_ready(self, msg) -> None:
-        r = tp.from_ros_or_warn(msg, self.sub_ready.topic_name, self.throttle, self.guard)
-        if r is None:
-            return
+    def on_ready(self, r: Ready) -> None:
         if r.agent not in self.ids:
             self.throttle.warn(self.sub_ready.topic_name, f"agent {r.agent}", "not in the scenario's team")
         elif r.scenario != self.fingerprint:
@@ -357,7 +370,7 @@ class RealtimeWorldNode(Node):
             self.finish_goal(ev)
         elif isinstance(ev, Detection):
             if ev.agent in self.live:
-                self.guard.publish(self.pub_det[ev.agent], wire.to_ros(ev, run=self.run))
+                self.guard.publish(self.pub_det[ev.agent], ev, run=self.run, receivers=(ev.agent,))
                 self.detections.setdefault(ev.agent, []).append(wire.to_ros(ev, run=self.run))
         elif isinstance(ev, CarryStarted):
             for j in ev.group:
@@ -375,30 +388,17 @@ class RealtimeWorldNode(Node):
         self.heard[agent] = (max(w, watermark), max(s, seq))
         self.heard_from(agent)
 
-    def on_sample(self, topic: str, msg) -> None:
-        if msg.run != self.run or msg.sender not in self.live:
-            return  # (a failed robot's: the world's own copies of its messages)
-        s = tp.from_ros_or_warn(msg, topic, self.throttle, self.guard)
-        if s is None:
-            return
+    def on_sample(self, topic: str, s: Any, data: bytes) -> None:
         sender = s.message.sender
         if sender in self.originals:
-            self.originals[sender].append((self.kind_pubs[topic], msg))
+            self.originals[sender].append((self.kind_pubs[topic], data))
             self.heard_of(sender, int(s.step) - 1, int(s.seq))
 
-    def on_mark(self, msg) -> None:
-        if msg.run != self.run:
-            return
-        m = tp.from_ros_or_warn(msg, self.sub_marks.topic_name, self.throttle, self.guard)
-        if m is not None:
-            self.heard_of(m.sender, m.watermark, m.seq)
+    def on_mark(self, m: Mark) -> None:
+        self.heard_of(m.sender, m.watermark, m.seq)
 
-    def on_digest(self, msg) -> None:
-        if msg.run != self.run:
-            return
-        d = tp.from_ros_or_warn(msg, self.sub_digests.topic_name, self.throttle, self.guard)
-        if d is not None:
-            self.digests.setdefault(d.stamp, {})[d.sender] = (d.input, d.output)
+    def on_digest(self, d: Digest) -> None:
+        self.digests.setdefault(d.stamp, {})[d.sender] = (d.input, d.output)
 
     # ------------------------------------------------------------------ failures
 
@@ -437,9 +437,9 @@ class RealtimeWorldNode(Node):
         # failed commits on meanwhile, and its notice must come after what it committed
         stamp = max(watermark + 1, math.ceil(max(now, self.sim_now()) - 1e-9))
         notice = self.world.notice(agent, stamp, seq)
-        self.guard.publish(self.pub_lost, wire.to_ros(notice, run=self.run))
-        for pub, msg in self.originals[agent]:
-            pub.publish(msg)  # as it was signed by the robot itself
+        self.guard.publish(self.pub_lost, notice, run=self.run)
+        for pub, data in self.originals[agent]:
+            self.guard.relay(pub, data)  # as the robot itself sealed it
         self.get_logger().warning(
             f"agent {agent} lost (no liveliness for 2 x {self.failure_timeout:g} s): failed at sim "
             f"time {now:.1f}, notice stamped {notice.t}; {len(self.live)} survivors"
@@ -457,15 +457,14 @@ class RealtimeWorldNode(Node):
         self.ended, self.ended_wall = self.world.end, time.monotonic()
         self.completed = self.world.done and not self.world.undeliverable()
         end = RunEnd(self.world.t, self.world.t, self.completed, run=self.run)
-        self.guard.publish(self.pub_end, wire.to_ros(end))
+        self.guard.publish(self.pub_end, end)
         self.write_progress(self.world.end, last=True)
         self.get_logger().info(f"run over at sim time {self.world.end:g}; collecting reports")
         if not self.live:
             self.finish()
 
-    def on_report(self, msg) -> None:
-        r = tp.from_ros_or_warn(msg, self.sub_report.topic_name, self.throttle, self.guard)
-        if r is None or r.run != self.run or r.agent not in self.ids:
+    def on_report(self, r: AgentReport) -> None:
+        if r.run != self.run or r.agent not in self.ids:
             return
         self.reports[r.agent] = r
         if self.ended is not None and self.result_at is None and all(i in self.reports for i in self.live):

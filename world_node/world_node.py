@@ -69,7 +69,7 @@ class WorldNode(Node):
         self.guard = node_auth(p["keys"], p["insecure"], auth.WORLD)
         # A fresh id per run: messages of any other run (a stray node) are told apart. A secure
         # run's id comes with its keys: every process knows it from team.yaml.
-        run = self.guard.signer.run if self.guard.signer is not None else secrets.token_hex(6)
+        run = self.guard.run or secrets.token_hex(6)
         self.rt = WorldRuntime(scenario, p["max_steps"] or None, p["event_skipping"], run=run)
         self.result_file = p["result_file"]
         self.marker_every = p["marker_every"]
@@ -96,7 +96,7 @@ class WorldNode(Node):
         self.t_start = 0.0
         self.last_progress = self.stall_since = time.monotonic()
         self.discovery = tp.Unchanged()  # what start lacks, and since when (rediscover_s)
-        self.last_sent: list = []  # what the current step published (ROS messages), for resend()
+        self.last_sent: list = []  # what the current step published (Ticks or a RunEnd), for resend()
         self.last_agents: list[int] = []  # ... to whom (the survivors)
         self.checkpoint_file = p["checkpoint_file"]
         self.resumed = False
@@ -106,7 +106,7 @@ class WorldNode(Node):
         q = tp.LOCKSTEP_QOS
         self.pub_clock = self.create_publisher(Clock, tp.CLOCK, tp.LATEST_QOS)
         self.pub_markers = self.create_publisher(MarkerArray, tp.MARKERS, tp.LATEST_QOS)
-        pub, sub = tp.no_events_pub, tp.no_events_sub  # lockstep endpoints: see no_events_pub
+        pub = tp.no_events_pub  # lockstep endpoints: see no_events_pub
         self.pub_tick = {
             i: self.create_publisher(wire.ros_type(Tick), tp.tick_topic(i), q, event_callbacks=pub())
             for i in self.ids
@@ -121,15 +121,12 @@ class WorldNode(Node):
         info = RunInfo(
             self.rt.run, dump_scenario(scenario), self.fingerprint, self.rt.skipping, self.rt.max_steps or 0
         )
-        self.guard.publish(self.pub_info, wire.to_ros(info))
-        self.sub_acted = self.create_subscription(
-            wire.ros_type(Acted), tp.ACTED, self.on_acted, q, event_callbacks=sub()
-        )
-        self.sub_ready = self.create_subscription(
-            wire.ros_type(Ready), tp.READY, self.on_ready, tp.LATCHED_ALL_QOS, event_callbacks=sub()
-        )
-        self.sub_report = self.create_subscription(
-            wire.ros_type(AgentReport), tp.REPORTS, self.on_report, tp.LATCHED_ALL_QOS, event_callbacks=sub()
+        self.guard.publish(self.pub_info, info)
+        g, th = self.guard, self.throttle
+        self.sub_acted = tp.subscribe(self, Acted, tp.ACTED, self.on_acted, q, g, th)
+        self.sub_ready = tp.subscribe(self, Ready, tp.READY, self.on_ready, tp.LATCHED_ALL_QOS, g, th)
+        self.sub_report = tp.subscribe(
+            self, AgentReport, tp.REPORTS, self.on_report, tp.LATCHED_ALL_QOS, g, th
         )
         # One liveliness reader per robot: a killed agent process is reported within the lease.
         self.sub_alive = {}
@@ -168,7 +165,7 @@ class WorldNode(Node):
             "fingerprint": self.fingerprint,
             "rt": self.rt,
             "ticks_sent": self.ticks_sent,
-            "last_sent": [wire.from_ros(m) for m in self.last_sent],
+            "last_sent": self.last_sent,
             "last_agents": self.last_agents,
         }
         tmp = f"{self.checkpoint_file}.tmp"
@@ -199,16 +196,13 @@ class WorldNode(Node):
             )
         self.rt = state["rt"]
         self.ticks_sent = state["ticks_sent"]
-        self.last_sent = [wire.to_ros(m) for m in state["last_sent"]]
+        self.last_sent = list(state["last_sent"])
         self.last_agents = list(state.get("last_agents", self.rt.live))
         self.resumed = True
 
     # ------------------------------------------------------------------ start
 
-    def on_ready(self, msg) -> None:
-        r = tp.from_ros_or_warn(msg, self.sub_ready.topic_name, self.throttle, self.guard)
-        if r is None:
-            return
+    def on_ready(self, r: Ready) -> None:
         if r.agent not in self.ids:
             self.throttle.warn(self.sub_ready.topic_name, f"agent {r.agent}", "not in the scenario's team")
         elif r.scenario != self.fingerprint:
@@ -316,20 +310,21 @@ class WorldNode(Node):
         t = self.rt.world.t
         self.publish_state(t)
         if isinstance(nxt, RunEnd):
-            self.last_sent = [wire.to_ros(nxt)]
+            self.last_sent = [nxt]
             self.save_checkpoint()
-            self.guard.publish(self.pub_end, self.last_sent[0])
+            self.guard.publish(self.pub_end, nxt)
             self.get_logger().info(
                 f"run ended at step {nxt.steps} (completed: {nxt.completed}); collecting reports"
             )
             return
-        self.last_sent = [wire.to_ros(tick) for tick in nxt]
+        self.last_sent = list(nxt)
         self.last_agents = [tick.observation.agent for tick in nxt]
         self.ticks_sent += 1
         self.save_checkpoint()  # before publishing: a published step is always recoverable
         self.tick_at = time.monotonic()
-        for tick, msg in zip(nxt, self.last_sent):
-            self.guard.publish(self.pub_tick[tick.observation.agent], msg)
+        for tick in nxt:
+            agent = tick.observation.agent  # its topic has one reader of the team: one tag
+            self.guard.publish(self.pub_tick[agent], tick, receivers=(agent,))
 
     def resend(self, all_agents: bool = False) -> None:
         """A step waits too long: publish its ticks (to agents that have not acted) or the
@@ -340,9 +335,9 @@ class WorldNode(Node):
                 self.guard.publish(self.pub_end, self.last_sent[0])
             return
         acted = set() if all_agents else set(self.rt.acted_agents())
-        for agent, msg in zip(self.last_agents, self.last_sent):
-            if agent not in acted and agent in self.rt.live:
-                self.guard.publish(self.pub_tick[agent], msg)
+        for agent, tick in zip(self.last_agents, self.last_sent):
+            if agent not in acted and agent in self.rt.live:  # sealed afresh: a new counter
+                self.guard.publish(self.pub_tick[agent], tick, receivers=(agent,))
 
     def publish_state(self, t: int) -> None:
         stamp = Time(sec=t, nanosec=0)
@@ -378,10 +373,7 @@ class WorldNode(Node):
         except OSError as exc:
             self.throttle.note((what, "world"), f"{what}: cannot write ({exc.strerror})")
 
-    def on_acted(self, msg) -> None:
-        a = tp.from_ros_or_warn(msg, self.sub_acted.topic_name, self.throttle, self.guard)
-        if a is None:
-            return
+    def on_acted(self, a: Acted) -> None:
         if a.run != self.rt.run:  # another run's (a stray): say so whether or not we started
             self.throttle.warn(
                 self.sub_acted.topic_name,
@@ -465,10 +457,7 @@ class WorldNode(Node):
 
     # ------------------------------------------------------------------ end
 
-    def on_report(self, msg) -> None:
-        r = tp.from_ros_or_warn(msg, self.sub_report.topic_name, self.throttle, self.guard)
-        if r is None:
-            return
+    def on_report(self, r: AgentReport) -> None:
         self.heard_from(r.agent)
         try:
             self.rt.accept_report(r)
@@ -503,7 +492,8 @@ class WorldNode(Node):
                 for k, v in self.round_trip_s.items()
             },
             "bring_up_s": None if self.bring_up_s is None else round(self.bring_up_s, 2),
-            # messages dropped for their signature, by the world and (their reports) the agents
+            # messages dropped (unsealed, forged, replayed, malformed), by the world and (their
+            # reports) the agents
             "auth": {"secure": self.guard.secure, "dropped": self.dropped()},
         }
         self.get_logger().info(

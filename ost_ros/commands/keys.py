@@ -1,8 +1,9 @@
 """``ost keys``: the key material of a secure DDS run (docs/ros.md, "Authenticated messages").
 
-``ost keys make DIR --scenario FILE`` writes one Ed25519 signing key per robot of the scenario's
-team and one for the world (``agent_<i>.key``, ``world.key``: mode 0600, each node reads only
-its own) and ``team.yaml`` (the run id and every public key, which every node reads).
+``ost keys make DIR --scenario FILE`` writes one X25519 key per robot of the scenario's team and
+one for the world (``agent_<i>.key``, ``world.key``: mode 0600, each node reads only its own; any
+two members derive from them the key they seal their messages to each other with) and
+``team.yaml`` (the run id and every public key, which every node reads).
 ``ost_up.sh`` and the launch file do it for every run; ``ost keys show DIR`` prints what a
 directory holds.
 """
@@ -20,8 +21,8 @@ from ost_ros.errors import UsageError
 def register(sub) -> None:
     keys = sub.add_parser(
         "keys",
-        help="key material of a secure DDS run (signed messages)",
-        description="Signing keys for a run: one per robot and one for the world.",
+        help="key material of a secure DDS run (sealed messages)",
+        description="Keys for a run: one per robot and one for the world.",
     )
     verbs = keys.add_subparsers(dest="keys_verb", metavar="VERB", parser_class=OneLineParser)
     p = leaf(verbs, "make", cmd_make, help="new keys for a team: DIR/agent_<i>.key, world.key, team.yaml")

@@ -1,4 +1,5 @@
-"""What the world, agent and watch nodes share on the wire: topic names, types, QoS, conversion.
+"""What the world, agent and watch nodes share on the wire: topic names, types, QoS, and the way
+in of a message (:func:`subscribe`: raw bytes, checked, decoded, or dropped with a warning).
 
 Every topic name is relative, so it lives under the node's namespace (default ``/ost``; ``-r
 __ns:=/team_a`` moves a whole team). Each protocol message kind has a topic of its own, named by
@@ -7,7 +8,9 @@ protocol only) and typed by its ``ost_msgs`` interface; the lockstep has ``agent
 ``acted``, ``ready``, ``run_end``, ``reports``, ``resend``. QoS per topic (docs/ros.md):
 everything the lockstep needs is reliable + keep-all, so no sample of a step is ever dropped
 (loss would break agreement); discovery hand-shakes and the result are transient-local, so a
-late joiner still gets them.
+late joiner still gets them. Every message of the run travels as the CDR bytes of its interface,
+sealed (:class:`ost_ros.node.signing.NodeAuth`) and taken raw; display and tool topics (clock,
+markers, result, alive, poses, the base's action) are ordinary typed traffic.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from __future__ import annotations
 import hashlib
 import re
 import time
+from collections.abc import Callable
 from typing import Any
 
 from rclpy.duration import Duration
@@ -22,11 +26,12 @@ from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallba
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.subscription import Subscription
 
-from ost_msgs_py import wire
+from ost_msgs_py import auth, wire
 from ost_msgs_py.wire import MessageError
 from ost_ros import protocols
-from ost_ros.lockstep.messages import Acted, AgentReport, Ready, Resend, RunEnd, RunInfo, Tick
+from ost_ros.lockstep.messages import Acted, AgentReport, Ready, Resend, RunEnd, RunInfo, Sample, Tick
 from ost_ros.model import Scenario
 from ost_ros.node.signing import NodeAuth
 from ost_ros.scenario import dump_scenario
@@ -162,8 +167,9 @@ class Unchanged:
 
 
 def renew(node: Node, endpoint: Any) -> Any:
-    """A new endpoint like ``endpoint`` — publisher or subscription, same type, topic, QoS and
-    callback, no default event handlers — the old one destroyed (see REDISCOVER_S)."""
+    """A new endpoint like ``endpoint`` — publisher or subscription, same type, topic, QoS,
+    callback and raw or not, no default event handlers — the old one destroyed (see
+    REDISCOVER_S)."""
     if isinstance(endpoint, Publisher):
         pub = node.create_publisher(
             endpoint.msg_type, endpoint.topic, endpoint.qos_profile, event_callbacks=no_events_pub()
@@ -176,6 +182,7 @@ def renew(node: Node, endpoint: Any) -> Any:
         endpoint.callback,
         endpoint.qos_profile,
         event_callbacks=no_events_sub(),
+        raw=endpoint.raw,
     )
     node.destroy_subscription(endpoint)
     return sub
@@ -192,6 +199,11 @@ def no_events_pub() -> PublisherEventCallbacks:
 def no_events_sub() -> SubscriptionEventCallbacks:
     """See :func:`no_events_pub`."""
     return SubscriptionEventCallbacks(use_default_callbacks=False)
+
+
+def sender_of(value: Any) -> str:
+    """Who a message dataclass (or Sample) is from, for warnings: ``agent 3``, ``the world``."""
+    return wire.sender_of(value.message if isinstance(value, Sample) else value)
 
 
 def scenario_fingerprint(scenario: Scenario) -> str:
@@ -229,15 +241,115 @@ class Throttle:
         self.logger.warning(f"{text}{more}")
 
 
-def from_ros_or_warn(msg: Any, topic: str, throttle: Throttle, guard: NodeAuth | None = None) -> Any:
-    """The message's dataclass (a Sample for a protocol message), or None after a throttled
-    warning naming the topic, the sender it claims and why (its signature, or the field)."""
-    why = guard.check(msg, topic) if guard is not None else None
-    if why is not None:
-        throttle.warn(topic, wire.sender_of(msg), why)
-        return None
-    try:
-        return wire.from_ros(msg)
-    except MessageError as exc:
-        throttle.warn(topic, wire.sender_of(msg), str(exc))
-        return None
+Skip = Callable[[Any], bool]
+
+
+class Receiver:
+    """A raw subscription's callback: the bytes of a sample in, its dataclass out to ``callback``
+    (a :class:`~ost_ros.lockstep.messages.Sample` for a protocol message; with the bytes as
+    received too, ``keep_bytes``) — or dropped, counted, with a throttled warning naming the topic,
+    the sender it claims and why.
+
+    In this order: the receiver's own tag (a secure run: :meth:`ost_msgs_py.auth.Checker.check`;
+    nothing that fails it is decoded), the bytes decoded into the interface's light message
+    (:func:`ost_msgs_py.wire.decode`), ``skip`` (a message the node already has, by its content:
+    ignored, neither counted nor warned about), the signer is the sender the message claims
+    (forged), the signer's counter (replayed), the dataclass (its own checks). The replay window
+    comes last of the checks, unlike the tag: a dead robot's messages relayed to those that hold
+    them carry their original counters (``skip`` must see them first), and a message refused for
+    its claim must not mark a counter as seen (one robot's key sealing as itself with counters of
+    its own clock would make the real robot's next messages look like replays). Warnings are
+    built only for a dropped message."""
+
+    __slots__ = ("callback", "decode", "guard", "keep_bytes", "kind", "skip", "throttle", "topic")
+
+    def __init__(
+        self,
+        kind: type,
+        callback: Callable[..., Any],
+        guard: NodeAuth,
+        throttle: Throttle,
+        keep_bytes: bool = False,
+        skip: Skip | None = None,
+    ):
+        self.kind, self.callback, self.guard, self.throttle = kind, callback, guard, throttle
+        self.keep_bytes, self.skip = keep_bytes, skip
+        self.decode = wire.decoder(kind)
+        self.topic = ""  # fully qualified: set by subscribe() once the subscription exists
+
+    def __call__(self, data: bytes) -> None:
+        value = self.receive(data)
+        if value is not None:
+            if self.keep_bytes:
+                self.callback(value, data)
+            else:
+                self.callback(value)
+
+    def receive(self, data: bytes) -> Any:
+        """The dataclass of ``data``, or None (skipped, or dropped and counted)."""
+        checker = self.guard.checker
+        if checker is not None:
+            why = checker.check(data, self.topic)
+            if why is not None:
+                return self.drop(data, why)
+        try:
+            msg, end = self.decode(data)
+        except MessageError as exc:
+            return self.drop(data, f"{auth.MALFORMED}: {exc}")
+        if self.skip is not None and self.skip(msg):
+            return None
+        if checker is not None:
+            a = msg.auth
+            if end != len(data) or len(a.tags) != checker.size:  # (the tags checked were not its own)
+                return self.drop(data, f"{auth.MALFORMED}: its bytes do not end with its tag vector", msg)
+            claimed = auth.claimed_signer(msg)
+            if claimed != a.signer:
+                who = "nobody" if claimed is None else auth.signer_name(claimed)
+                return self.drop(
+                    data, f"{auth.FORGED}: sealed by {auth.signer_name(a.signer)}, sent as {who}", msg
+                )
+            why = checker.fresh(a.signer, a.counter)
+            if why is not None:
+                return self.drop(data, why, msg)
+        try:
+            return wire.from_ros(msg)
+        except MessageError as exc:
+            return self.drop(data, f"{auth.MALFORMED}: {exc}", msg)
+
+    def drop(self, data: bytes, why: str, msg: Any = None) -> None:
+        self.guard.drop(why)
+        if msg is None:  # who it claims to be from: decoded now, for the warning only
+            try:
+                msg = self.decode(data)[0]
+            except MessageError:
+                msg = None
+        self.throttle.warn(self.topic, wire.sender_of(msg), why)
+
+
+def subscribe(
+    node: Node,
+    kind: type,
+    topic: str,
+    callback: Callable[..., Any],
+    qos: QoSProfile,
+    guard: NodeAuth,
+    throttle: Throttle,
+    keep_bytes: bool = False,
+    skip: Skip | None = None,
+    events: bool = False,
+) -> Subscription:
+    """A raw subscription to ``topic`` (relative) for the interface of the message dataclass
+    ``kind``: ``callback(value)`` — ``callback(value, data)`` with ``keep_bytes`` — for each
+    sample that passes the checks (:class:`Receiver`). ``events``: rclpy's default event
+    handlers (off: see :func:`no_events_sub`)."""
+    receiver = Receiver(kind, callback, guard, throttle, keep_bytes, skip)
+    sub = node.create_subscription(
+        wire.ros_type(kind),
+        topic,
+        receiver,
+        qos,
+        raw=True,
+        event_callbacks=None if events else no_events_sub(),
+    )
+    receiver.topic = sub.topic_name
+    return sub

@@ -1,14 +1,17 @@
 """A foreign process on a run's domain, attacking it as a stranger can (tests/ros/test_secure.py).
 
-    python tests/ros/intruder.py --agents 0,1,2 --protocol ccp --stolen-key DIR/agent_1.key
+    python tests/ros/intruder.py --agents 0,1,2 --protocol ccp --stolen-key DIR/agent_1.key --team DIR
 
 It learns the run id and scenario fingerprint from the world's public ``run_info``, then until
-the result appears it publishes, on every topic of the run, well-formed messages of that
-topic's type, in four ways: unsigned; signed with a key of its own as the sender it claims;
-signed with one robot's real key (``--stolen-key``: agent 1's) but claiming to be another robot
-or the world; and with that key and another's signer id. It also captures genuine messages and
-publishes them again, on their own topic (replays) and on another of the same type. Prints a
-JSON count of what it sent, by kind of attack.
+the result appears it publishes, on every topic of the run, well-formed messages of that topic's
+type, in five ways: unsealed (an empty tag vector); sealed with a key of its own as the sender
+it claims; with one robot's real key (``--stolen-key``: agent 1's) as agent 1 but claiming to be
+another robot or the world; with that key in another member's name C for every other receiver B
+— the keys agent 1 shares with B are not C's, so B must refuse it (agent 1's own slot is left
+empty: there the key does work, what MACs give up — tests/ost_msgs_py/test_auth.py); and with that
+key for another run. It also captures the run's messages (the bytes, all but its own) and
+publishes them again, on their own topic (replays) and a tick on another robot's tick topic.
+Prints a JSON count of what it sent, by kind of attack.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from pathlib import Path
 
 import rclpy
 from cryptography.hazmat.primitives import serialization
-from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
+from cryptography.hazmat.primitives.asymmetric.x25519 import X25519PrivateKey
 from rclpy.node import Node
 from std_msgs.msg import String
 
@@ -43,9 +46,9 @@ def forged_messages(
     victim, other = ids[1], ids[2]
     obj = ObjectInfo(99, (1, 1), (2, 2), 1)
     kinds = {
-        ObjectFound: ObjectFound(victim, t, obj),
+        ObjectFound: ObjectFound(other, t, obj),
         SearchDone: SearchDone(victim, t),
-        Selection: Selection(victim, t, 0, (99,)),
+        Selection: Selection(other, t, 0, (99,)),
         Status: Status(victim, t, t + 1, (1, 1)),
         ScheduleUpdate: ScheduleUpdate(victim, t, 0, ()),
     }
@@ -64,6 +67,13 @@ def forged_messages(
     return out
 
 
+def sealed(keys: auth.Keys, value: object, topic: str, receivers=None) -> bytes:
+    s = auth.Sealer(keys)
+    data = wire.to_cdr(value, counter=s.next(), signer=s.signer, tags=s.size)
+    s.seal(data, topic, receivers)
+    return bytes(data)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--agents", required=True)
@@ -74,18 +84,26 @@ def main() -> int:
     args = ap.parse_args()
     ids = [int(x) for x in args.agents.split(",")]
     stolen = serialization.load_pem_private_key(Path(args.stolen_key).read_bytes(), password=None)
-    assert isinstance(stolen, Ed25519PrivateKey)
-    own = Ed25519PrivateKey.generate()
+    assert isinstance(stolen, X25519PrivateKey)
+    own = X25519PrivateKey.generate()
     thief = ids[1]  # whose key was stolen: it may not speak for anyone else
+    team = auth.load_team(args.team)
+    # Pairwise keys it can compute: its own key's with the team, the stolen key's (as the thief,
+    # as each other member, and for another run).
+    as_itself = auth.Keys(team, thief, stolen)
+    own_keys = {m: auth.Keys(team, m, own) for m in team.members}
+    in_name_of = {m: auth.Keys(team, m, stolen) for m in team.members}
+    other_run = auth.Keys(auth.Team("another" + team.run, team.keys), thief, stolen)
+    not_thief = [m for m in team.members if m != thief]
 
     rclpy.init()
     node = Node("intruder", namespace=tp.NAMESPACE)
     q = tp.LOCKSTEP_QOS
     latched = tp.LATCHED_ALL_QOS
-    genuine = auth.Verifier(auth.load_team(args.team))
-    info: list = []
+    info: list[RunInfo] = []
     done: list = []
-    captured: dict[str, list] = {}
+    mine: set[bytes] = set()  # what it published itself (its subscriptions hear it too)
+    captured: dict[str, list[bytes]] = {}
     types = {
         tp.ACTED: (Acted, q),
         tp.READY: (Ready, latched),
@@ -96,20 +114,18 @@ def main() -> int:
         **{tp.tick_topic(i): (Tick, q) for i in ids},
         **{tp.message_topic(k): (k, q) for k in protocols.get(args.protocol).messages},
     }
-    pubs = {}
-    subs = []
+    pubs, subs = {}, []
     for topic, (cls, qos) in types.items():
         ros_type = wire.ros_type(cls)
         pubs[topic] = node.create_publisher(ros_type, topic, qos)
 
-        def keep(msg, topic=topic):
+        def keep(data: bytes, topic=topic) -> None:
             if topic == tp.RUN_INFO and not info:
-                info.append(msg)
-            # genuine messages only (the public keys tell), not this process's own
-            if genuine.check(msg, node.resolve_topic_name(topic)) is None:
-                captured.setdefault(topic, []).append(msg)
+                info.append(wire.from_cdr(RunInfo, data))  # (read, not checked: it has no key of the world's)
+            if data not in mine:
+                captured.setdefault(topic, []).append(data)
 
-        subs.append(node.create_subscription(ros_type, topic, keep, qos))
+        subs.append(node.create_subscription(ros_type, topic, keep, qos, raw=True))
     subs.append(node.create_subscription(String, tp.RESULT, lambda m: done.append(m), tp.RESULT_QOS))
 
     sent: Counter[str] = Counter()
@@ -127,9 +143,10 @@ def main() -> int:
     print(f"intruder: matched; run {run}", file=sys.stderr, flush=True)
     replayed: dict[str, int] = {}
 
-    def publish(pub, msg, how: str) -> None:
+    def publish(pub, data: bytes, how: str) -> None:
+        mine.add(data)
         try:
-            pub.publish(msg)
+            pub.publish(data)
             sent[how] += 1
         except RuntimeError:  # (RCLError) a keep-all writer whose readers lag: DDS refuses
             sent["refused by DDS"] += 1
@@ -139,25 +156,25 @@ def main() -> int:
         t += 1
         for topic, value in forged_messages(run, fingerprint, ids, args.protocol, t):
             pub = pubs[topic]
+            full = pub.topic_name
             claimed = auth.claimed_signer(wire.to_ros(value))
             assert claimed is not None
-            publish(pub, wire.to_ros(value), "unsigned")
-            team = auth.Team(run, {})
-            # a key of its own, as the sender it claims
-            publish(pub, auth.Signer(team, claimed, own).seal(wire.to_ros(value), pub.topic_name), "own key")
+            publish(pub, bytes(wire.to_cdr(value)), "unsigned")
+            publish(pub, sealed(own_keys[claimed], value, full), "own key")  # as the sender it claims
             if claimed != thief:
-                # a robot's real key, speaking for another robot or the world
-                m = auth.Signer(team, thief, stolen).seal(wire.to_ros(value), pub.topic_name)
-                publish(pub, m, "stolen key, own id")
-                m = auth.Signer(team, claimed, stolen).seal(wire.to_ros(value), pub.topic_name)
-                publish(pub, m, "stolen key, other id")
-        # genuine messages again: on their own topic, and on another of the same type
+                # the stolen key as itself, claiming another robot or the world
+                publish(pub, sealed(as_itself, value, full), "stolen key, own id")
+                # ... in the claimed member's name, to every receiver but itself
+                publish(pub, sealed(in_name_of[claimed], value, full, not_thief), "stolen key, other id")
+                publish(pub, sealed(other_run, value, full), "stolen key, other run")
+        # genuine messages again: on their own topic, and a tick on another robot's tick topic
         for topic, msgs in list(captured.items()):
-            for msg in msgs[replayed.get(topic, 0) :]:
-                publish(pubs[topic], msg, "replay")
+            for data in msgs[replayed.get(topic, 0) :]:
+                publish(pubs[topic], data, "replay")
                 if topic.endswith("/tick"):
-                    other = tp.tick_topic(ids[(ids.index(msg.observation.agent) + 1) % len(ids)])
-                    publish(pubs[other], msg, "replay, other topic")
+                    agent = wire.decode(Tick, data)[0].observation.agent
+                    other = tp.tick_topic(ids[(ids.index(agent) + 1) % len(ids)])
+                    publish(pubs[other], data, "replay, other topic")
             replayed[topic] = len(msgs)
         end_spin = time.monotonic() + 0.1
         while time.monotonic() < end_spin:

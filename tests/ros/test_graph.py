@@ -100,11 +100,12 @@ def test_graph_and_malformed_messages(tmp_path, procs, domain):
     # Each receiver warns once per topic and sender, naming both and the field, and keeps running.
     procs.wait_for(
         "world",
-        "dropped message on /ost/acted from agent 1: acted.action.kind: 'jump' is not one of wait, move, carry",
+        "dropped message on /ost/acted from agent 1: malformed: acted.action.kind: 'jump' is not one of wait, "
+        "move, carry",
     )
     procs.wait_for(
         "world",
-        "dropped message on /ost/reports from agent 1: agent_report.predicted_makespan: -5 "
+        "dropped message on /ost/reports from agent 1: malformed: agent_report.predicted_makespan: -5 "
         "(expected -1 for none, or a value >= 0)",
     )
     procs.wait_for(
