@@ -1,59 +1,59 @@
 """``agent_node`` of a realtime run (``realtime:=true``; docs/realtime.md): one robot with no barrier.
 
 The node wires :class:`~ost_ros.realtime.agent.RealtimeAgent` — the protocol's own agent as a set of
-callbacks — to DDS, and does nothing else: peers' messages (stamped ``Envelope`` s on the
-protocol's topics, watermarks on ``marks``, requests on ``needs``, the world's notices on
-``lost``), its base's events (the ``FollowCells`` action's results and lift feedback, its
-``detections``, ``where`` answers) and its timers go in as they arrive; what the runtime returns —
-messages to publish, goals for its base, a question for ``where``, a timer, a digest — goes out.
+callbacks — to DDS, and does nothing else: peers' messages (stamped, each carrying its sender's
+watermark, on the protocol's topics; watermarks alone on ``marks``, requests on ``needs``; the
+world's notices on ``lost``), its base's events (``agent_<i>/base``: numbered, in order) and its
+timers go in as they arrive; what the runtime returns — messages to publish, goals for its base,
+a timer, a digest — goes out.
 
-Time is the world's ``<ns>/clock`` (sim time, steps), extrapolated between two clock messages at
-the run's ``rtf`` so the robot's own timers are exact; it never goes back. A base event that comes
-later than the robot's clock (the network) is taken then, and a message it causes is stamped
-then: the agreement holds, only a little time is lost.
+**A decision is local.** Where its base will be is the robot's own picture of it
+(:class:`~ost_ros.realtime.base.BaseMirror`), kept from the events its base sends anyway (a goal
+took over, a stall, a lift, a goal's end) and from its own goals: no question to the world on a
+decision's path. Goals go out on the base's action (``ost_msgs/action/FollowCells``: only its
+``send_goal`` service is used — the acceptance is not waited for, the events say what happened).
+
+**Time** is the bases' clock ``<ns>/base_clock`` (sim time, steps), extrapolated between two of its
+messages at the run's ``rtf`` for the robot's own timers; it never goes back. The same message
+says how many events this robot's base has sent up to its time: once all of those are in, the
+robot has every base event up to that time and may commit it (:meth:`RealtimeAgent.base_known`)
+— never sooner, so a find its base made is never promised away.
 """
 
 from __future__ import annotations
 
-import functools
+import array
 import os
 import signal
 import time
+from collections import deque
 from typing import Any
 
 from ost_msgs.action import FollowCells
-from ost_msgs.srv import Where
-from rclpy.action import ActionClient
 from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
 from rclpy.node import Node
-from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from ost_msgs_py import wire
-from ost_msgs_py.wire import MessageError
 from ost_ros.lockstep.messages import AgentReport, Ready, RunEnd, Sample, ScheduleEntry
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
 from ost_ros.node.params import declare_agent
 from ost_ros.node.signing import node_auth
 from ost_ros.realtime.agent import AskFeedback, Output, Publish, RealtimeAgent, SendGoal, WakeAt
-from ost_ros.realtime.messages import Digest, Envelope, Lost, Mark, Need, ObjectInfo
+from ost_ros.realtime.base import mirror_of, unpack
+from ost_ros.realtime.messages import BaseClock, BaseEvent, Digest, Envelope, Lost, Mark, Need
 from ost_ros.realtime.run import make_agent
 from ost_ros.realtime.stamps import LateMessage
-from ost_ros.realtime.world import Carry, CarryStarted, Detection, Feedback, Follow, GoalResult, Stand
+from ost_ros.realtime.world import Carry, CarryStarted, Detection, Follow, GoalResult, Stand
 from ost_ros.team import TeamInfo
 
 START_S = 0.05  # how often it looks whether its endpoints are matched, before the run
-# A service answer can be lost while the world's reply writer has not yet matched this client's
-# reader (the request side matched first): the warm-up question is asked again after this long.
-# The base's action has two such reply paths (the goal's acceptance, its result): a robot that
-# never heard its first goal's acceptance would never commit its time, and hold its team up.
-WARM_RETRY_S = 1.0
-WARM_GOAL = 0  # the warm-up goal's id (the robot's own goals count from 1)
 # A robot held up this long (wall) by a batch says what it waits for (throttled): a stalled team
 # names the robot it waits on, and that robot says what it waits for.
 STALL_S = 5.0
+SENT_GOALS = 64  # send_goal requests whose answers it keeps waiting for (it reads none of them)
 
 
 class RealtimeAgentNode(Node):
@@ -65,10 +65,14 @@ class RealtimeAgentNode(Node):
         ids = tuple(a.id for a in scenario.agents)
         me = p["agent_id"]
         self.me, self.ids, self.p = me, ids, p
-        self.rt: RealtimeAgent = make_agent(
-            TeamInfo.from_scenario(scenario), me, p["protocol"], cfg.policy(), cfg.protocol_settings()
-        )
+        team = TeamInfo.from_scenario(scenario)
+        self.rt: RealtimeAgent = make_agent(team, me, p["protocol"], cfg.policy(), cfg.protocol_settings())
         self.rt.remote_base = True
+        self.rt.base_known(-1.0)  # nothing of its base known yet: it commits nothing
+        # where an object is carried to: what the robot knows of it (it carries only objects it
+        # has heard of)
+        self.mirror = mirror_of(team, me, lambda obj: self.rt.comm.knowledge.objects[obj].destination)
+        self.index = ids.index(me)  # its place in the bases' clock
         self.fingerprint = tp.scenario_fingerprint(scenario)
         self.guard = node_auth(p["keys"], p["insecure"], me)
         self.run = self.guard.run or ""
@@ -77,98 +81,76 @@ class RealtimeAgentNode(Node):
         self.done = False
         self.exit_code = 0
         self.ready_sent = self.started = False
-        self.clock = (0.0, 0.0)  # (sim time, monotonic time it came)
+        self.clock = (0.0, 0.0)  # (sim time of the last base clock, monotonic time it came)
         self._now = 0.0
-        self.goal_kind: dict[int, tuple[int, tuple[int, ...]]] = {}  # goal id -> (object, group)
+        self.base_in = 0  # base events taken, in order (1..base_in)
+        self.base_ahead: dict[int, BaseEvent] = {}  # events that came before one still missing
+        self.base_owed: deque[tuple[float, int]] = deque()  # (time, events by then) not all in yet
         self.wake_timer: Any = None
         self.wake_at: float | None = None
         self.report_sent = False
         self.die_at = p["die_at_step"]
-        # Where its base stands idle since its last goal ended (time, cell, goal, what it senses):
-        # where-am-I is answered here then, without a round trip to the world.
-        self.idle: tuple[float, tuple[int, int], int, tuple] | None = None
-        self.warm: Any = None
-        self.warm_at = 0.0
         self.early: list[Envelope | Mark | Need | Lost] = []  # what peers said before its start
-        self.warm_goal_at: float | None = None  # when the warm-up goal went out
-        self.warm_goal_done = False  # its acceptance and its result came back
         self.created = time.monotonic()
         # The node's ROS clock is the run's sim time (use_sim_time, /clock); its timers run on the
-        # steady clock, because it extrapolates sim time between clock messages at the run's rtf.
+        # steady clock, because it extrapolates sim time between base clock messages at the rtf.
         self.wall = RosClock(clock_type=ClockType.STEADY_TIME)
         self.last_goal = 0  # the id of the goal sent last
-        self.accepted = 0  # the latest goal whose acceptance came back
-        self.ended = 0  # the latest goal whose result came back
-        self.ask_at: float | None = None  # a where-am-I held (until an acceptance or a result)
-        self.follow_end: dict[int, tuple[int, tuple[int, int]]] = {}  # FOLLOW id -> (cells, last)
+        self.ask_at: float | None = None  # a decision waiting for its picture of its base
+        self.sent_goals: deque[Any] = deque()  # send_goal futures (answers not read)
         self.said = {"messages": 0, "marks": 0, "needs": 0}  # what it published (the report's log line)
         self._build_endpoints()
         self.start_timer = self.create_timer(START_S, self.try_ready, clock=self.wall)
         self.stall_timer = self.create_timer(STALL_S / 2, self.watch, clock=self.wall)
-        self.asking: tuple[float | None, float] = (None, 0.0)  # (the decision asking, since)
+        self.asking: tuple[float | None, float] = (None, 0.0)  # (the decision waiting, since)
 
     # ------------------------------------------------------------------ endpoints
 
     def _build_endpoints(self) -> None:
-        q, me = tp.LOCKSTEP_QOS, self.me
-        g, th = self.guard, self.throttle
+        q, me, g, th = tp.LOCKSTEP_QOS, self.me, self.guard, self.throttle
 
-        def other_run(m) -> bool:  # (checked before the replay window: tp.Receiver)
+        def other_run(m) -> bool:
             return m.run != self.run
 
         def not_for_me(m) -> bool:
             return m.run != self.run or m.sender == self.me
 
+        def known(m) -> bool:  # (a copy it has: the world publishes a failed robot's messages again)
+            return not_for_me(m) or self.rt.batches.seen(m.sender, m.seq)
+
         self.kind_pubs: dict[type, Any] = {}
         self.kind_subs = []
         for kind in rtp.message_kinds(self.p["protocol"]):
             topic = tp.message_topic(kind)
-            self.kind_pubs[kind] = self.create_publisher(wire.ros_type(kind), topic, q)
-            self.kind_subs.append(
-                tp.subscribe(
-                    self,
-                    kind,
-                    topic,
-                    functools.partial(self.on_sample, self.resolve_topic_name(topic)),
-                    q,
-                    g,
-                    th,
-                    events=True,
-                    # (a copy it has: the world publishes a failed robot's messages again)
-                    skip=lambda m: not_for_me(m) or self.rt.batches.seen(m.sender, m.seq),
-                )
+            self.kind_pubs[kind] = self.create_publisher(
+                wire.ros_type(kind), topic, q, event_callbacks=tp.no_events_pub()
             )
-        self.pub_marks = self.create_publisher(wire.ros_type(Mark), rtp.MARKS, q)
-        self.sub_marks = tp.subscribe(
-            self, Mark, rtp.MARKS, self.on_mark, q, g, th, skip=not_for_me, events=True
+            self.kind_subs.append(tp.subscribe(self, kind, topic, self.on_sample, q, g, th, skip=known))
+        self.pub_marks = self.create_publisher(
+            wire.ros_type(Mark), rtp.MARKS, q, event_callbacks=tp.no_events_pub()
         )
-        self.pub_needs = self.create_publisher(wire.ros_type(Need), rtp.NEEDS, q)
-        self.sub_needs = tp.subscribe(
-            self, Need, rtp.NEEDS, self.on_need, q, g, th, skip=not_for_me, events=True
+        self.sub_marks = tp.subscribe(self, Mark, rtp.MARKS, self.take, q, g, th, skip=not_for_me)
+        self.pub_needs = self.create_publisher(
+            wire.ros_type(Need), rtp.NEEDS, q, event_callbacks=tp.no_events_pub()
         )
+        self.sub_needs = tp.subscribe(self, Need, rtp.NEEDS, self.take, q, g, th, skip=not_for_me)
         self.sub_lost = tp.subscribe(
-            self, Lost, rtp.LOST, self.on_lost, tp.LATCHED_ALL_QOS, g, th, skip=other_run, events=True
+            self, Lost, rtp.LOST, self.on_lost, tp.LATCHED_ALL_QOS, g, th, skip=other_run
         )
-        self.pub_digests = self.create_publisher(wire.ros_type(Digest), rtp.DIGESTS, q)
-        self.sub_clock = self.create_subscription(Clock, tp.CLOCK, self.on_clock, tp.LATEST_QOS)
-        self.sub_det = tp.subscribe(
-            self,
-            Detection,
-            rtp.detections_topic(me),
-            self.on_detection,
-            q,
-            g,
-            th,
-            skip=other_run,
-            events=True,
+        self.pub_digests = self.create_publisher(
+            wire.ros_type(Digest), rtp.DIGESTS, q, event_callbacks=tp.no_events_pub()
         )
-        self.base = ActionClient(self, FollowCells, rtp.follow_action(me))
-        self.where = self.create_client(Where, rtp.where_service(me))
+        self.sub_clock = tp.subscribe(
+            self, BaseClock, rtp.BASE_CLOCK, self.on_base_clock, tp.LOCKSTEP_QOS, g, th, skip=other_run
+        )
+        self.sub_base = tp.subscribe(
+            self, BaseEvent, rtp.base_topic(me), self.on_base, q, g, th, skip=other_run
+        )
+        # The base's action, as its goals' sender only: the events say what became of them.
+        self.send_goal = self.create_client(FollowCells.Impl.SendGoalService, rtp.send_goal_service(me))
         self.pub_ready = self.create_publisher(wire.ros_type(Ready), tp.READY, tp.LATCHED_ALL_QOS)
         self.pub_report = self.create_publisher(wire.ros_type(AgentReport), tp.REPORTS, tp.LATCHED_ALL_QOS)
-        self.sub_end = tp.subscribe(
-            self, RunEnd, tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS, g, th, events=True
-        )
+        self.sub_end = tp.subscribe(self, RunEnd, tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS, g, th)
         self.sub_result = self.create_subscription(String, tp.RESULT, self.on_result, tp.RESULT_QOS)
         lease = self.p["failure_timeout"]
         self.pub_alive = None
@@ -189,12 +171,11 @@ class RealtimeAgentNode(Node):
         if self.pub_needs.get_subscription_count() < n or self.sub_needs.get_publisher_count() < n:
             out.append("needs")
         for what, ok in (
-            ("clock", self.sub_clock.get_publisher_count() >= 1),
-            ("detections", self.sub_det.get_publisher_count() >= 1),
+            ("base_clock", self.sub_clock.get_publisher_count() >= 1),
+            ("base", self.sub_base.get_publisher_count() >= 1),
             ("lost", self.sub_lost.get_publisher_count() >= 1),
             ("digests", self.pub_digests.get_subscription_count() >= 1),
-            ("follow_cells", self.base.server_is_ready()),
-            ("where", self.where.service_is_ready()),
+            ("follow_cells", self.send_goal.service_is_ready()),
             ("alive", self.pub_alive is None or self.pub_alive.get_subscription_count() >= 1),
         ):
             if not ok:
@@ -209,21 +190,6 @@ class RealtimeAgentNode(Node):
             if time.monotonic() - self.created > tp.DISCOVERY_NOTE_S:
                 self.throttle.note(("start", "agent"), f"not ready yet: not matched {lacking[:8]}")
             return
-        wall = time.monotonic()
-        # first calls set up the reply paths (both at once): not at the run's first decision
-        base_warm = self.base_warm(wall)
-        if self.warm is None or (not self.warm.done() and wall - self.warm_at > WARM_RETRY_S):
-            if self.warm is not None:
-                self.where.remove_pending_request(self.warm)
-                self.throttle.note(("start", "where"), "where-am-I not answered yet: asking again")
-            self.warm, self.warm_at = self.where.call_async(Where.Request(at=0.0)), wall
-            return
-        if not self.warm.done() or not base_warm:
-            return
-        r = self.warm.result()
-        if r is not None:  # the base at sim time 0 (the world does not move before the start)
-            sensed = tuple(wire.from_ros_value(ObjectInfo, o, "where.sensed") for o in r.sensed)
-            self.idle = (0.0, (r.cell.x, r.cell.y), int(r.goal), sensed)
         self.ready_sent = True
         self.start_timer.cancel()
         if self.pub_alive is not None:
@@ -231,45 +197,24 @@ class RealtimeAgentNode(Node):
         ready = Ready(self.me, self.p["protocol"], self.fingerprint, self.p["coordination"])
         self.guard.publish(self.pub_ready, ready)
 
-    def base_warm(self, wall: float) -> bool:
-        """Whether a goal's acceptance and result reach this robot: a STAND goal before the run,
-        which the world accepts and refuses ("the run has not started"), sent again after
-        WARM_RETRY_S without both answers."""
-        if self.warm_goal_done:
-            return True
-        if self.warm_goal_at is None or wall - self.warm_goal_at > WARM_RETRY_S:
-            if self.warm_goal_at is not None:
-                self.throttle.note(("start", "base"), "base goal not answered yet: sending again")
-            self.warm_goal_at = wall
-            g = FollowCells.Goal()
-            g.id, g.kind = WARM_GOAL, FollowCells.Goal.STAND
-            self.base.send_goal_async(g).add_done_callback(self.on_warm_accepted)
-        return False
-
-    def on_warm_accepted(self, fut) -> None:
-        handle = fut.result()
-        if handle is None or not handle.accepted:
-            self.warm_goal_done = handle is not None  # a rejection came back the same way
-            return
-        handle.get_result_async().add_done_callback(lambda _f: setattr(self, "warm_goal_done", True))
-
     # ------------------------------------------------------------------ time
 
     def now(self) -> float:
-        """Sim time: the world's clock, extrapolated at rtf since it came; never backwards."""
+        """Sim time: the bases' clock, extrapolated at rtf since it came; never backwards."""
         sim, at = self.clock
         self._now = max(self._now, sim + (time.monotonic() - at) * self.rtf)
         return self._now
 
-    def on_clock(self, msg: Clock) -> None:
-        t = msg.clock.sec + msg.clock.nanosec * 1e-9
-        self.clock = (t, time.monotonic())
+    def on_base_clock(self, msg: BaseClock) -> None:
+        if not self.ready_sent or self.index >= len(msg.events):
+            return
+        self.clock = (msg.t, time.monotonic())
+        self.base_owed.append((msg.t, msg.events[self.index]))
         if not self.started:
-            if not self.ready_sent:
-                return
             self.started = True
-            self._now = t
+            self._now = msg.t
             self.out(self.rt.start(self.now()))
+            self.take_base()  # what its base said before (what it senses where it stands)
             early, self.early = self.early, []
             for payload in early:
                 self.take(payload)
@@ -280,7 +225,17 @@ class RealtimeAgentNode(Node):
                 f"die_at_step {self.die_at}: killing this process (SIGKILL) at {now:.1f}"
             )
             os.kill(os.getpid(), signal.SIGKILL)
+        self.base_known()
         self.fire(now)
+
+    def base_known(self) -> None:
+        """Its base's events are in up to the latest clock whose count it has reached: it may
+        commit that far (and no further)."""
+        t = None
+        while self.base_owed and self.base_owed[0][1] <= self.base_in:
+            t = self.base_owed.popleft()[0]
+        if t is not None:
+            self.rt.base_known(t)
 
     def arm(self, t: float) -> None:
         """A timer for sim time ``t`` (the earliest asked for wins)."""
@@ -298,49 +253,37 @@ class RealtimeAgentNode(Node):
         self.wake_timer, self.wake_at = None, None
         self.fire(self.now())
 
-    def watch(self) -> None:
-        """Say what holds the robot up, once it has waited STALL_S of wall time."""
-        if not self.started or self.report_sent:
-            return
-        now, wall = self.now(), time.monotonic()
-        base = f"goals sent {self.last_goal}, accepted {self.accepted}, ended {self.ended}"
-        held = self.rt.waiting(now)
-        if held is not None and now - held[0] > STALL_S * self.rtf:
-            self.throttle.note(("stall", "batch"), f"held up at sim time {now:.0f}: {held[1]} ({base})")
-        # a decision waiting for where its base is holds its commit, and so its peers' batches
-        asking = self.rt.asking()
-        if asking is None or asking != self.asking[0]:
-            self.asking = (asking, wall)
-        elif wall - self.asking[1] > STALL_S:
-            why = "the world's answer"  # a where-am-I is out
-            if self.ask_at is not None:  # held until the last goal is accepted, or has ended
-                why = "its last goal's " + ("acceptance" if self.accepted < self.last_goal else "result")
-            self.throttle.note(
-                ("stall", "where"),
-                f"held up at sim time {now:.0f}: the decision of time {asking:g} has waited "
-                f"{wall - self.asking[1]:.0f} s for where its base is: for {why} ({base})",
-            )
-
     def fire(self, now: float) -> None:
-        """The runtime's timers due by now (and the time passed committed)."""
+        """The runtime's timers due by now (and the time passed committed, as far as it may)."""
         if self.started and not self.report_sent:
             self.out(self.rt.on_clock(now))
             pending = sorted(w for w in self.rt._wakes if w > now)
             if pending:
                 self.arm(pending[0])
 
+    def watch(self) -> None:
+        """Say what holds the robot up, once it has waited STALL_S of wall time."""
+        if not self.started or self.report_sent:
+            return
+        now, wall = self.now(), time.monotonic()
+        base = f"goals sent {self.last_goal}; base events in {self.base_in}"
+        held = self.rt.waiting(now)
+        if held is not None and now - held[0] > STALL_S * self.rtf:
+            self.throttle.note(("stall", "batch"), f"held up at sim time {now:.0f}: {held[1]} ({base})")
+        asking = self.rt.asking()
+        if asking is None or asking != self.asking[0]:
+            self.asking = (asking, wall)
+        elif wall - self.asking[1] > STALL_S:
+            self.throttle.note(
+                ("stall", "base"),
+                f"held up at sim time {now:.0f}: the decision of time {asking:g} has waited "
+                f"{wall - self.asking[1]:.0f} s for its base to start or end the goal sent last ({base})",
+            )
+
     # ------------------------------------------------------------------ what comes in
 
-    def on_sample(self, topic: str, s: Sample) -> None:
-        if isinstance(s, Sample):
-            env = Envelope(s.message.sender, int(s.seq), int(s.step), s.message)
-            self.take(env)
-
-    def on_mark(self, m: Mark) -> None:
-        self.take(m)
-
-    def on_need(self, m: Need) -> None:
-        self.take(m)
+    def on_sample(self, s: Sample) -> None:
+        self.take(Envelope(s.message.sender, s.seq, s.step, s.message, s.watermark))
 
     def on_lost(self, m: Lost) -> None:
         if m.agent == self.me:
@@ -362,9 +305,8 @@ class RealtimeAgentNode(Node):
 
     def take(self, payload: Envelope | Mark | Need | Lost) -> None:
         if not self.started:
-            # a peer that heard the world's first clock sooner has started and spoken: kept for
-            # the start (dropped, its message or watermark was lost for good and batch 1 with it
-            # — 11 of 50 robots waited on one peer's batch 1 for the rest of a run)
+            # a peer that heard the first clock sooner has started and spoken: kept for the start
+            # (dropped, its message or watermark was lost for good and batch 1 with it)
             self.early.append(payload)
             return
         if not self.report_sent and not self.done:
@@ -373,48 +315,72 @@ class RealtimeAgentNode(Node):
             except LateMessage as exc:  # a peer broke its watermark: said, never a crash
                 self.throttle.note(("late", str(getattr(payload, "sender", "?"))), f"dropped: {exc}")
 
-    def on_detection(self, d: Detection) -> None:
+    def on_base(self, m: BaseEvent) -> None:
+        """One of its base's events: taken in their order (one topic, reliable: one that comes
+        early waits for those before it), from its start on."""
+        if m.seq <= self.base_in or m.agent != self.me:
+            return
+        self.base_ahead[m.seq] = m
         if self.started:
-            if os.environ.get("OST_RT_DEBUG"):
-                self.get_logger().info(f"t={self._now:.1f} detection {d}")
-            self.out(self.rt.on_detection(d, self.now()))
+            self.take_base()
+
+    def take_base(self) -> None:
+        while self.base_in + 1 in self.base_ahead:
+            self.base_in += 1
+            self.base_event(self.base_ahead.pop(self.base_in))
+        self.base_known()
+        if self.ask_at is not None and self.mirror.fresh:  # the decision waiting for it
+            at, self.ask_at = self.ask_at, None
+            self.decide(at)
+
+    def base_event(self, m: BaseEvent) -> None:
+        try:
+            ev = unpack(m)
+        except ValueError as exc:
+            self.throttle.warn(self.sub_base.topic_name, "the world", str(exc))
+            return
+        if isinstance(ev, GoalResult) and ev.outcome == "preempted" and ev.goal == self.last_goal:
+            # not by itself: another client's goal (an operator's) took its base over
+            ev = GoalResult(ev.agent, ev.goal, "aborted", ev.time, ev.cell, "PREEMPTED", ev.reason)
+        if not isinstance(ev, Detection):
+            self.mirror.take(ev, m.sensed)
+        if self.report_sent:
+            return
+        if isinstance(ev, Detection):
+            self.out(self.rt.on_detection(ev, self.now()))
+        elif isinstance(ev, CarryStarted):
+            self.out(self.rt.on_carry(ev, self.now()))
+        elif isinstance(ev, GoalResult):
+            self.out(self.rt.on_result(ev, self.now()))
 
     # ------------------------------------------------------------------ what goes out
 
     def out(self, outputs: list[Output]) -> None:
-        if os.environ.get("OST_RT_DEBUG"):
-            self.get_logger().info(f"t={self._now:.1f} out {outputs}")
         for o in outputs:
             if isinstance(o, Publish):
                 self.publish(o.payload)
             elif isinstance(o, Digest):
-                self.guard.publish(self.pub_digests, o, run=self.run)
+                self.guard.publish(self.pub_digests, o, run=self.run, receivers=(-1,))
             elif isinstance(o, SendGoal):
-                self.send_goal(o)
+                self.send(o)
             elif isinstance(o, AskFeedback):
-                self.where_am_i(float(o.at))
+                self.decide(float(o.at))
             elif isinstance(o, WakeAt):
                 self.arm(o.time)
 
-    def where_am_i(self, at: float) -> None:
-        """Where its base is at ``at``: known here if it stands where its last goal ended; else
-        asked of the world — once the goal sent last is in the world's hands, because the service
-        and the action are separate DDS paths and an answer from before that goal would make the
-        robot decide on a state it has left (and send the same goal twice)."""
-        if self.idle is not None:
-            t, cell, gid, sensed = self.idle
-            fb = Feedback(self.me, max(at, t), cell, gid, -1, -1, sensed)
-            self.out(self.rt.on_feedback(fb, self.now()))
-        elif self.accepted < self.last_goal:
-            self.ask_at = at  # asked when the goal's acceptance comes back (on_accepted)
-        else:
-            fut = self.where.call_async(Where.Request(at=at))
-            fut.add_done_callback(functools.partial(self.on_where, at))
+    def decide(self, at: float) -> None:
+        """Where its base will be (its own picture of it): now, unless a goal it sent has neither
+        started nor ended yet (then once it has: its events say so)."""
+        if not self.mirror.fresh:
+            self.ask_at = at
+            return
+        now = self.now()
+        self.out(self.rt.on_feedback(self.mirror.feedback(max(at, now)), now))
 
     def publish(self, payload: Envelope | Mark | Need) -> None:
         if isinstance(payload, Envelope):
             kind = type(payload.message)
-            sample = Sample(payload.message, payload.stamp, payload.seq, self.run)
+            sample = Sample(payload.message, payload.stamp, payload.seq, self.run, payload.implied)
             self.guard.publish(self.kind_pubs[kind], sample)
             self.said["messages"] += 1
         elif isinstance(payload, Mark):
@@ -424,103 +390,27 @@ class RealtimeAgentNode(Node):
             self.guard.publish(self.pub_needs, payload, run=self.run)
             self.said["needs"] += 1
 
-    def send_goal(self, o: SendGoal) -> None:
+    def send(self, o: SendGoal) -> None:
+        """A goal for its base: on the action's send_goal service (the acceptance is not read —
+        the base's events say how it went)."""
         self.last_goal = o.id
-        if self.idle is not None and isinstance(o.goal, Stand):
-            self.idle = (self.idle[0], self.idle[1], o.id, self.idle[3])  # still there
-        else:
-            self.idle = None
+        self.mirror.sent(o.id, o.goal)
         g = FollowCells.Goal()
         g.id, g.at, g.state = int(o.id), float(o.at), o.goal.state
         if isinstance(o.goal, Follow):
             g.kind = FollowCells.Goal.FOLLOW
             g.path = [wire.to_ros_cell(c) for c in o.goal.path]
-            self.follow_end[o.id] = (len(o.goal.path), o.goal.path[-1])
         elif isinstance(o.goal, Carry):
             g.kind, g.object, g.group = FollowCells.Goal.CARRY, o.goal.object, list(o.goal.group)
-            self.goal_kind[o.id] = (o.goal.object, o.goal.group)
         else:
             assert isinstance(o.goal, Stand)
             g.kind = FollowCells.Goal.STAND
-        sent = self.base.send_goal_async(g, feedback_callback=functools.partial(self.on_feedback, o.id))
-        sent.add_done_callback(functools.partial(self.on_accepted, o.id))
-
-    def on_accepted(self, gid: int, fut) -> None:
-        handle = fut.result()
-        self.accepted = max(self.accepted, gid)
-        if self.ask_at is not None and self.accepted >= self.last_goal:
-            at, self.ask_at = self.ask_at, None
-            self.where_am_i(at)
-        if not handle.accepted:
-            self.on_goal_result(gid, None)
-            return
-        handle.get_result_async().add_done_callback(lambda f: self.on_goal_result(gid, f.result().result))
-
-    def on_goal_result(self, gid: int, res) -> None:
-        self.goal_kind.pop(gid, None)
-        self.follow_end.pop(gid, None)
-        self.ended = max(self.ended, gid)
-        if not self.started or self.report_sent:
-            return
-        if res is None:
-            r = GoalResult(
-                self.me, gid, "refused", self.now(), (0, 0), "REJECTED", "the base rejected the goal"
-            )
-        else:
-            self.late_detections(res.detections)
-            outcome, code = res.outcome, res.code
-            if outcome == "preempted" and gid == self.last_goal:  # not by itself: another client's goal
-                outcome, code = "aborted", "PREEMPTED"
-            r = GoalResult(self.me, gid, outcome, res.t, (res.cell.x, res.cell.y), code, res.reason)
-            if gid == self.last_goal and res.outcome in ("reached", "aborted"):
-                sensed = tuple(wire.from_ros_value(ObjectInfo, o, "result.sensed") for o in res.sensed)
-                self.idle = (float(res.t), r.cell, gid, sensed)
-        if os.environ.get("OST_RT_DEBUG"):
-            self.get_logger().info(f"t={self._now:.1f} result {r}")
-        self.out(self.rt.on_result(r, self.now()))
-        if self.ask_at is not None and self.ended >= self.last_goal:  # held for this result
-            at, self.ask_at = self.ask_at, None
-            self.where_am_i(at)
-
-    def late_detections(self, msgs) -> None:
-        """The detections a goal result repeats, before the result itself: one still missing from
-        the detections topic is taken now (it is news only once, whichever path comes first)."""
-        for m in msgs:
-            try:
-                d = wire.from_ros_value(Detection, m, "result.detections")
-            except MessageError as exc:
-                self.throttle.warn(rtp.follow_action(self.me), "a goal result", str(exc))
-                continue
-            self.out(self.rt.on_detection(d, self.now()))
-
-    def on_feedback(self, gid: int, msg) -> None:
-        fb = msg.feedback
-        if fb.lifted and gid in self.goal_kind and self.started and not self.report_sent:
-            obj, group = self.goal_kind[gid]
-            self.out(self.rt.on_carry(CarryStarted(obj, group, fb.t), self.now()))
-
-    def on_where(self, at: float, fut) -> None:
-        r = fut.result()
-        if r is None or not self.started or self.report_sent:
-            return
-        if self.idle is not None:
-            # the last goal's result came in the meantime (another DDS path): it says where the
-            # robot stands; this answer may be from before it (mid-carry, an object since delivered)
-            self.where_am_i(at)
-            return
-        end = self.follow_end.get(int(r.goal)) if r.goal == self.last_goal else None
-        if end is not None and (r.index >= end[0] - 1 or (r.index < 0 and (r.cell.x, r.cell.y) == end[1])):
-            # at (or bound for) its path's last cell: the goal's result decides, not this answer
-            # — the result repeats the goal's detections, and a sweep must not end before them
-            self.ask_at = at
-            return
-        if r.goal < self.last_goal and self.ended < self.last_goal:
-            # the world had not begun the goal sent last (accepted, not yet executed): again
-            self.where_am_i(at)
-            return
-        sensed = tuple(wire.from_ros_value(ObjectInfo, o, "where.sensed") for o in r.sensed)
-        fb = Feedback(self.me, r.time, (r.cell.x, r.cell.y), r.goal, r.index, r.carrying, sensed)
-        self.out(self.rt.on_feedback(fb, self.now()))
+        req = FollowCells.Impl.SendGoalService.Request()
+        req.goal_id.uuid = array.array("B", os.urandom(16))
+        req.goal = g
+        self.sent_goals.append(self.send_goal.call_async(req))
+        while len(self.sent_goals) > SENT_GOALS:  # an answer that never came: not waited for
+            self.send_goal.remove_pending_request(self.sent_goals.popleft())
 
     # ------------------------------------------------------------------ the end
 

@@ -23,8 +23,8 @@ die() { stage_break; echo "build_msgs: error: $*" >&2; exit 2; }
 # The package's files and every protocol's own .msg files (ost_ros/protocols/<name>/msg/, which
 # its CMakeLists.txt gathers into it): a new or changed message anywhere rebuilds.
 stamp="$(cd "$repo" && {
-  ls -1 "$src/msg" "$src/srv" "$src/action" ost_ros/protocols/*/msg/*.msg
-  cat "$src/CMakeLists.txt" "$src/package.xml" "$src"/msg/*.msg "$src"/srv/*.srv "$src"/action/*.action \
+  ls -1 "$src/msg" "$src/action" ost_ros/protocols/*/msg/*.msg
+  cat "$src/CMakeLists.txt" "$src/package.xml" "$src"/msg/*.msg "$src"/action/*.action \
     ost_ros/protocols/*/msg/*.msg
   cat bringup_scripts/build_msgs.sh
 } | sha256sum | cut -d' ' -f1)"

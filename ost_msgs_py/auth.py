@@ -65,7 +65,9 @@ TEAM_FILE = "team.yaml"
 WINDOW = 1 << 16  # counters of each signer remembered by a receiver
 TAG = 16  # bytes of one receiver's tag
 # Interfaces only the world sends; every other one names its agent (see claimed_signer).
-WORLD_TYPES = frozenset({"Tick", "RunEnd", "RunInfo", "Detection", "Lost"})  # (realtime: the last two)
+WORLD_TYPES = frozenset(
+    {"Tick", "RunEnd", "RunInfo", "Lost", "BaseEvent", "BaseClock"}
+)  # (realtime: the last three)
 DOMAIN = b"ost-mac-1\0"  # what the digest of a message starts with: no other use of it can collide
 _KDF_PERSON = b"ost-pair-key-1"  # BLAKE2b personalisation of the pairwise key derivation
 _PAIR = struct.Struct("<ii")

@@ -44,8 +44,7 @@ from ost_ros import protocols
 from ost_ros.lockstep import messages as _runtime
 from ost_ros.lockstep.messages import PlanColumns, PlanStep, Sample
 from ost_ros.messages import AgentLost
-from ost_ros.realtime.messages import Digest, Lost, Mark, Need, RtStatus
-from ost_ros.realtime.world import Detection
+from ost_ros.realtime.messages import BaseClock, BaseEvent, Digest, Lost, Mark, Need, RtStatus
 
 # Agent-to-agent messages (every kind a registered protocol broadcasts, and a survivor's status
 # without a barrier) travel as Samples; the world's notices (AgentLost) only inside Tick/RunEnd.
@@ -54,7 +53,7 @@ RUNTIME_MESSAGES: tuple[type, ...] = _runtime.RUNTIME_MESSAGES
 # What realtime runs say besides (docs/realtime.md): watermarks, requests for them, the world's
 # stamped failure notices, coordination digests, a robot's detections. Each has a ``run`` field
 # on the wire that the node sets and checks (:func:`to_ros` ``run=``).
-REALTIME_MESSAGES: tuple[type, ...] = (Mark, Need, Lost, Digest, Detection)
+REALTIME_MESSAGES: tuple[type, ...] = (Mark, Need, Lost, Digest, BaseEvent, BaseClock)
 _NOT_ON_WIRE = {"version"}
 _WORLD_FIELDS = {(AgentLost, "sender")}  # always WORLD: implied by the message kind
 
@@ -279,7 +278,7 @@ class _Reader:
         except MessageError:
             value = self.from_ros(msg, self.where)
         if self.sample:
-            return Sample(value, int(msg.step), int(msg.seq), msg.run)
+            return Sample(value, int(msg.step), int(msg.seq), msg.run, int(msg.watermark))
         return value
 
 
@@ -295,7 +294,7 @@ def to_ros(value: Any, run: str | None = None) -> Any:
 def _to(value: Any, run: str | None, light: bool) -> Any:
     if isinstance(value, Sample):
         return _codec(type(value.message), light).to_ros(
-            value.message, run=value.run, step=value.step, seq=value.seq
+            value.message, run=value.run, step=value.step, seq=value.seq, watermark=value.watermark
         )
     if run is not None:
         return _codec(type(value), light).to_ros(value, run=run)

@@ -1,25 +1,37 @@
 """``world_node`` of a realtime run (``realtime:=true``; docs/realtime.md): the robots' bases in sim
 time, with no barrier. It serves :class:`~ost_ros.realtime.world.RealtimeWorld` to the agents:
 
-- ``<ns>/clock`` (``rosgraph_msgs/Clock``): sim time, ``rtf`` steps per wall second, ``clock_hz``
-  times a second;
 - per robot ``<ns>/agent_<i>/follow_cells`` (``ost_msgs/action/FollowCells``: follow a path,
   stand, carry an object with its group; a new goal preempts the running one; feedback when a
-  carry is lifted), ``<ns>/agent_<i>/where`` (``ost_msgs/srv/Where``: where the base will be at
-  its next cell boundary), ``<ns>/agent_<i>/detections`` (``ost_msgs/Detection``: objects coming
-  into its sensor) and ``<ns>/agent_<i>/pose`` (``geometry_msgs/PoseStamped``, frame ``map``,
-  1 cell = 1 m, 10 times a second);
+  carry is lifted; results) — what a robot, ``ros2 action send_goal`` or any action client drives
+  the base with;
+- per robot ``<ns>/agent_<i>/base`` (``ost_msgs/BaseEvent``): everything the base does, numbered
+  and in order — a goal took over (from which cell and time, when its first move leaves, how long
+  a move takes), a stall, a lift, a detection (objects coming into its sensor), a goal's end. The
+  robot keeps its own picture of its base from these (:mod:`ost_ros.realtime.base`): it never
+  asks where it is;
+- ``<ns>/base_clock`` (``ost_msgs/BaseClock``): sim time, ``rtf`` steps per wall second,
+  ``clock_hz`` times a second (and right after events), with how many base events each robot's
+  base has sent so far — a robot holding all of them has every base event up to that time;
+  ``<ns>/clock`` (``rosgraph_msgs/Clock``) for tools and ``use_sim_time``, 10 times a second;
+- ``<ns>/agent_<i>/pose`` (``geometry_msgs/PoseStamped``, frame ``map``, 1 cell = 1 m) when the
+  robot has moved, at most 10 times a second;
 - failures: an agent whose liveliness is lost (as in lockstep) is killed in the world and declared
-  with a stamped notice on ``<ns>/lost`` above its last watermark the world heard; the world keeps
-  every robot's signed messages and publishes the dead robot's again, so a survivor that lacks one
-  of its counted messages gets it;
+  with a stamped notice on ``<ns>/lost`` above every watermark the world heard from it; its
+  counted messages are those the world holds without a gap, its counted sensing ends where it was
+  at the last watermark among them (its base moved on while nobody heard of the death); the world
+  keeps every robot's sealed messages and publishes the dead robot's again, so a survivor that
+  lacks one of them gets it;
 - the end: once every object is delivered and every robot finished, ``run_end`` asks for the
   agents' reports; their digests (``<ns>/digests``, as they came) are compared and the result —
   ``ost sim``'s JSON plus ``mode``, ``rtf``, ``disagreements`` and each agent's largest lag — goes
   to ``<ns>/result`` and ``result_file``.
 
-The robot-to-base link (the action, the service, the detections) is the robot's own hardware in a
-real team: it is not signed; every robot-to-robot message and the world's notices are.
+Everything a robot reads from the world (base events, the bases' clock, notices, run_end) is
+sealed like a robot's messages (docs/ros.md); the action and the display topics are not.
+
+It runs on rclpy's EventsExecutor: a goal, a sample or a timer wakes it, nothing polls — 50
+bases standing still cost the clock's ticks.
 """
 
 from __future__ import annotations
@@ -28,12 +40,12 @@ import functools
 import json
 import math
 import time
+from dataclasses import dataclass, field
 from typing import Any
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
 from ost_msgs.action import FollowCells
-from ost_msgs.srv import Where
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
@@ -43,14 +55,15 @@ from std_msgs.msg import String
 
 from ost_msgs_py import auth, wire
 from ost_ros.bounds import lower_bound
-from ost_ros.lockstep.messages import AgentReport, Ready, RunEnd
+from ost_ros.lockstep.messages import AgentReport, Ready, RunEnd, Sample
 from ost_ros.lockstep.world import result_from_reports
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
 from ost_ros.node.params import ParameterError, declare_role, node_scenario
 from ost_ros.node.run import process_age, write_file
 from ost_ros.node.signing import node_auth
-from ost_ros.realtime.messages import Digest, Mark
+from ost_ros.realtime.base import pack
+from ost_ros.realtime.messages import BaseClock, BaseEvent, Digest, Mark, Need
 from ost_ros.realtime.world import (
     ABORTED,
     REACHED,
@@ -66,20 +79,36 @@ from ost_ros.runconfig import WORLD, ConfigError, RunConfig
 from ost_ros.scenario import ScenarioError
 
 PROGRESS_S = 0.25  # the progress file, at most this often (wall)
-POSE_HZ = 10.0  # poses and follow feedback, a modest rate (wall)
-# The world polls its bases this often (wall): events are due at most this late. Each wake of
-# rclpy's single-threaded executor rebuilds the wait set of every robot's action server and
-# service, so the period grows with the team: 2 ms up to 10 robots, 0.2 ms a robot beyond (a
-# 50-robot world polled at 2 ms spent most of a core waking; docs/realtime.md).
-TIMER_S, TIMER_S_PER_AGENT, TIMER_S_MAX = 0.002, 0.0002, 0.02
-
-
-def poll_period(agents: int) -> float:
-    """The world's poll period (s) for a team of ``agents``."""
-    return min(TIMER_S_MAX, max(TIMER_S, TIMER_S_PER_AGENT * agents))
-
-
+POSE_HZ = 10.0  # poses of robots that moved, and the rosgraph clock (wall)
 START_S = 0.05  # how often it looks whether the team is ready, before the run
+
+
+@dataclass
+class Heard:
+    """What the world heard of one robot's messages: which arrived (its originals, to relay) and
+    the watermarks they and its marks carried — what its failure notice is made of."""
+
+    contiguous: int = 0  # every message 1..contiguous is here
+    ahead: set[int] = field(default_factory=set)
+    marks: list[tuple[int, int]] = field(default_factory=list)  # (watermark, seq) heard
+    highest: int = -1  # the highest watermark it announced (to anyone the world heard)
+
+    def message(self, seq: int, watermark: int) -> None:
+        if seq > self.contiguous:
+            self.ahead.add(seq)
+            while self.contiguous + 1 in self.ahead:
+                self.contiguous += 1
+                self.ahead.discard(self.contiguous)
+        self.mark(watermark, seq)
+
+    def mark(self, watermark: int, seq: int) -> None:
+        self.highest = max(self.highest, watermark)
+        self.marks.append((watermark, seq))
+
+    def sensed_until(self) -> int:
+        """The last watermark among the messages counted (1..contiguous): every base event up to
+        it was handled, so what it sensed up to there it reported (in those messages)."""
+        return max((w for w, s in self.marks if s <= self.contiguous), default=-1)
 
 
 class RealtimeWorldNode(Node):
@@ -91,7 +120,9 @@ class RealtimeWorldNode(Node):
         scenario = node_scenario(p)
         try:
             stalls = RunConfig.of(p).stalls()
-            self.world = RealtimeWorld(scenario, p["speed_jitter"], p["noise_seed"], tuple(stalls))
+            self.world = RealtimeWorld(
+                scenario, p["speed_jitter"], p["noise_seed"], tuple(stalls), tracking=True
+            )
         except ScenarioError as exc:
             raise ParameterError(f"scenario: {exc}") from None
         except (ConfigError, ValueError) as exc:
@@ -114,25 +145,22 @@ class RealtimeWorldNode(Node):
         self.completed = False
         self.bring_up_s: float | None = None
         self.created = time.monotonic()
-        self.last_try = 0.0
-        self.last_clock = self.last_pose = self.progress_at = -1.0
+        self.last_clock = self.progress_at = -1.0
         self.live = set(self.ids)
         self.suspects: dict[int, float] = {}
         self.alive_seen: set[int] = set()
-        # What the world hears of every robot: its watermark and message count (for a failure's
-        # stamp), its signed messages (to relay a dead robot's), its coordination digests.
-        self.heard: dict[int, tuple[int, int]] = {i: (-1, 0) for i in self.ids}
-        self.originals: dict[int, list[tuple[Any, Any]]] = {i: [] for i in self.ids}
+        self.heard: dict[int, Heard] = {i: Heard() for i in self.ids}
+        self.originals: dict[int, list[tuple[Any, bytes]]] = {i: [] for i in self.ids}
         self.digests: dict[int, dict[int, tuple[str, str]]] = {}  # stamp -> agent -> digest
-        self.messages = 0
-        self.goals: dict[tuple[int, int], tuple[Future, Any, Any]] = {}  # (agent, goal id) -> ...
+        self.events = dict.fromkeys(self.ids, 0)  # base events sent to each robot
+        self.sent_events = False  # since the last base clock
+        self.posed: dict[int, tuple[int, int]] = {}  # the cell each robot's last pose showed
+        self.goals: dict[tuple[int, int], tuple[Future, Any]] = {}  # (agent, goal id) -> ...
         self.carrying: dict[int, tuple[int, Any]] = {}  # agent -> (object, goal handle) of its carry
-        # agent -> its detections since its last goal result: the next result repeats them (a
-        # sample lost on the detections topic is repaired by DDS, late; the robot may have ended
-        # its search by then, so its finds must not hang on that repair alone)
-        self.detections: dict[int, list[Any]] = {}
+        self.event_timer: Any = None
+        self.event_at: float | None = None
         self._build_endpoints(p)
-        self.timer = self.create_timer(poll_period(len(self.ids)), self.on_timer)
+        self.timer = self.create_timer(START_S, self.on_tick)
         self.get_logger().info(
             f"realtime: waiting for {len(self.ids)} agents ({self.fingerprint}); rtf {self.rtf:g}"
         )
@@ -140,52 +168,38 @@ class RealtimeWorldNode(Node):
     # ------------------------------------------------------------------ endpoints
 
     def _build_endpoints(self, p: dict[str, Any]) -> None:
-        q = tp.LOCKSTEP_QOS
+        q, g, th, quiet = tp.LOCKSTEP_QOS, self.guard, self.throttle, tp.no_events_pub
+
+        def other_run(m) -> bool:
+            return m.run != self.run
+
+        def dead(m) -> bool:  # (a failed robot's: the world's own copies of its messages)
+            return m.run != self.run or m.sender not in self.live
+
         self.pub_clock = self.create_publisher(Clock, tp.CLOCK, tp.LATEST_QOS)
+        self.pub_base_clock = self.create_publisher(
+            wire.ros_type(BaseClock), rtp.BASE_CLOCK, q, event_callbacks=quiet()
+        )
         self.pub_result = self.create_publisher(String, tp.RESULT, tp.RESULT_QOS)
         self.pub_end = self.create_publisher(wire.ros_type(RunEnd), tp.RUN_END, tp.LATCHED_ALL_QOS)
         self.pub_lost = self.create_publisher(wire.ros_type(rtp.Lost), rtp.LOST, tp.LATCHED_ALL_QOS)
-        g, th = self.guard, self.throttle
-        self.sub_ready = tp.subscribe(
-            self, Ready, tp.READY, self.on_ready, tp.LATCHED_ALL_QOS, g, th, events=True
-        )
+        self.sub_ready = tp.subscribe(self, Ready, tp.READY, self.on_ready, tp.LATCHED_ALL_QOS, g, th)
         self.sub_report = tp.subscribe(
-            self, AgentReport, tp.REPORTS, self.on_report, tp.LATCHED_ALL_QOS, g, th, events=True
+            self, AgentReport, tp.REPORTS, self.on_report, tp.LATCHED_ALL_QOS, g, th
         )
-        # Every robot's messages: what it said (its watermark, its count) and, signed, to relay.
-        self.kind_pubs: dict[str, Any] = {}
+        # Every robot's messages: what it said (its watermarks, its count) and, sealed, to relay.
+        self.kind_pubs: dict[type, Any] = {}
         self.kind_subs = []
         for kind in rtp.message_kinds(p["protocol"]):
             topic = tp.message_topic(kind)
-            self.kind_pubs[self.resolve_topic_name(topic)] = self.create_publisher(
-                wire.ros_type(kind), topic, q
-            )
-            self.kind_subs.append(
-                tp.subscribe(
-                    self,
-                    kind,
-                    topic,
-                    functools.partial(self.on_sample, self.resolve_topic_name(topic)),
-                    q,
-                    g,
-                    th,
-                    keep_bytes=True,
-                    events=True,
-                    # (a failed robot's: the world's own copies of its messages)
-                    skip=lambda m: m.run != self.run or m.sender not in self.live,
-                )
-            )
-
-        def other_run(m) -> bool:  # (checked before the replay window: tp.Receiver)
-            return m.run != self.run
-
-        self.sub_marks = tp.subscribe(
-            self, Mark, rtp.MARKS, self.on_mark, q, g, th, skip=other_run, events=True
-        )
-        self.sub_digests = tp.subscribe(
-            self, Digest, rtp.DIGESTS, self.on_digest, q, g, th, skip=other_run, events=True
-        )
-        self.servers, self.wheres, self.pub_det, self.pub_pose = {}, {}, {}, {}
+            pub = self.create_publisher(wire.ros_type(kind), topic, q, event_callbacks=quiet())
+            self.kind_pubs[kind] = pub
+            on = functools.partial(self.on_sample, pub)
+            self.kind_subs.append(tp.subscribe(self, kind, topic, on, q, g, th, keep_bytes=True, skip=dead))
+        self.sub_marks = tp.subscribe(self, Mark, rtp.MARKS, self.on_mark, q, g, th, skip=other_run)
+        self.sub_needs = tp.subscribe(self, Need, rtp.NEEDS, self.on_mark, q, g, th, skip=other_run)
+        self.sub_digests = tp.subscribe(self, Digest, rtp.DIGESTS, self.on_digest, q, g, th, skip=other_run)
+        self.servers, self.pub_base, self.pub_pose = {}, {}, {}
         for i in self.ids:
             self.servers[i] = ActionServer(
                 self,
@@ -195,10 +209,9 @@ class RealtimeWorldNode(Node):
                 goal_callback=lambda _goal: GoalResponse.ACCEPT,
                 cancel_callback=lambda _goal: CancelResponse.REJECT,  # a new goal preempts
             )
-            self.wheres[i] = self.create_service(
-                Where, rtp.where_service(i), functools.partial(self.on_where, i)
+            self.pub_base[i] = self.create_publisher(
+                wire.ros_type(BaseEvent), rtp.base_topic(i), q, event_callbacks=quiet()
             )
-            self.pub_det[i] = self.create_publisher(wire.ros_type(Detection), rtp.detections_topic(i), q)
             self.pub_pose[i] = self.create_publisher(PoseStamped, rtp.pose_topic(i), tp.LATEST_QOS)
         # Liveliness: a killed agent process is a failed robot (as in lockstep).
         self.failure_timeout = p["failure_timeout"]
@@ -238,23 +251,43 @@ class RealtimeWorldNode(Node):
         else:
             self.ready[r.agent] = r
 
-    def try_start(self) -> None:
+    def lacking(self) -> list[str]:
+        """What the start waits for: every robot ready, its writers matched here and the world's
+        writers matched there (a sample written before its reader matched is never delivered)."""
         n = len(self.ids)
-        lacking = [i for i in self.ids if i not in self.ready]
+        out = [f"ready from agents {[i for i in self.ids if i not in self.ready][:8]}"]
+        if len(self.ready) == n:
+            out = []
         writers = min((s.get_publisher_count() for s in self.kind_subs), default=n)
+        if writers < n or self.sub_marks.get_publisher_count() < n:
+            out.append(f"message writers {writers}/{n}")
         unseen = sorted(set(self.ids) - self.alive_seen) if self.sub_alive else []
-        if lacking or writers < n or self.sub_marks.get_publisher_count() < n or unseen:
+        if unseen:
+            out.append(f"liveliness from {unseen[:8]}")
+        bases = [i for i in self.ids if self.pub_base[i].get_subscription_count() < 1]
+        if bases or self.pub_base_clock.get_subscription_count() < n:
+            out.append(f"base readers of {bases[:8]}")
+        if self.pub_lost.get_subscription_count() < n:
+            out.append("lost readers")
+        return out
+
+    def try_start(self) -> None:
+        lacking = self.lacking()
+        if lacking:
             if time.monotonic() - self.created > tp.DISCOVERY_NOTE_S:
-                self.throttle.note(
-                    ("start", "world"),
-                    f"not starting yet: no ready from agents {lacking[:8]}, message writers "
-                    f"{writers}/{n}, liveliness not seen from {unseen[:8]}",
-                )
+                self.throttle.note(("start", "world"), f"not starting yet: {'; '.join(lacking)}")
             return
         self.started = True
         self.t0 = time.monotonic()
         self.bring_up_s = process_age()
-        self.get_logger().info(f"all {n} agents ready; sim time 0 (rtf {self.rtf:g})")
+        self.get_logger().info(f"all {len(self.ids)} agents ready; sim time 0 (rtf {self.rtf:g})")
+        for i in self.ids:  # what each robot senses where it stands at the start
+            sensed = self.world.feedback(i, 0.0).sensed
+            if sensed:
+                self.emit(i, Detection(i, 0.0, self.world.bots[i].cell, sensed, sensed))
+        self.timer.cancel()
+        self.timer = self.create_timer(1.0 / self.p["clock_hz"], self.on_tick)
+        self.publish_base_clock(0.0)  # the robots start on it
         self.publish_clock(0.0)
         _write(self.p["ready_file"], f"{self.bring_up_s or 0.0:.3f}\n", self)
 
@@ -264,7 +297,7 @@ class RealtimeWorldNode(Node):
         """One goal of robot ``agent``: handed to the world now; the result when it ends."""
         req = handle.request
         fut: Future = Future()
-        self.goals[(agent, req.id)] = (fut, handle, req)
+        self.goals[(agent, req.id)] = (fut, handle)
         goal: Follow | Stand | Carry
         if req.kind == FollowCells.Goal.FOLLOW:
             goal = Follow(tuple((c.x, c.y) for c in req.path), req.state)
@@ -273,12 +306,13 @@ class RealtimeWorldNode(Node):
             self.carrying[agent] = (int(req.object), handle)
         else:
             goal = Stand(req.state)
-        if agent not in self.live or not self.started:
-            self.finish_goal(GoalResult(agent, req.id, "refused", self.sim_now(), (0, 0), "FAILED",
-                                        "the robot has failed" if self.started else "the run has not started"))  # fmt: skip
+        if agent not in self.live or not self.started or self.ended is not None:
+            why = "the robot has failed" if self.started else "the run has not started"
+            self.dispatch(GoalResult(agent, req.id, "refused", self.sim_now(), (0, 0), "FAILED", why))
         else:
-            for r in self.world.goal(agent, req.id, goal, max(float(req.at), self.sim_now())):
-                self.finish_goal(r)
+            for ev in self.world.goal(agent, req.id, goal, max(float(req.at), self.sim_now())):
+                self.dispatch(ev)
+            self.after_events()
         res = await fut
         if res.outcome == REACHED:
             handle.succeed()
@@ -286,68 +320,116 @@ class RealtimeWorldNode(Node):
             handle.abort()
         return res
 
-    def finish_goal(self, r: GoalResult) -> None:
+    def finish_goal(self, r: GoalResult, sensed: tuple = ()) -> None:
         entry = self.goals.pop((r.agent, r.goal), None)
         if entry is None:
             return
-        fut, handle, _request = entry
+        fut, handle = entry
         if self.carrying.get(r.agent, (None, None))[1] is handle:
             del self.carrying[r.agent]
         res = FollowCells.Result()
         res.outcome, res.code, res.reason, res.t = r.outcome, r.code, r.reason, float(r.time)
         res.cell.x, res.cell.y = r.cell
-        res.detections = self.detections.pop(r.agent, [])
-        if r.outcome in (REACHED, ABORTED) and r.agent in self.live:  # it stands there, idle
-            res.sensed = [wire.to_ros(o) for o in self.world.feedback(r.agent, float(r.time)).sensed]
+        res.sensed = [wire.to_ros(o) for o in sensed]
         fut.set_result(res)
 
-    def on_where(self, agent: int, request, response):
-        fb = self.world.feedback(agent, max(float(request.at), self.sim_now()))
-        response.time = float(fb.time)
-        response.cell.x, response.cell.y = fb.cell
-        response.goal, response.index, response.carrying = int(fb.goal), int(fb.index), int(fb.carrying)
-        response.sensed = [wire.to_ros(o) for o in fb.sensed]
-        return response
+    def emit(self, agent: int, ev: Any, sensed: tuple = ()) -> None:
+        """Robot ``agent``'s base event ``ev``, numbered, on its base topic (to it alone)."""
+        if agent not in self.live:
+            return
+        self.events[agent] += 1
+        msg = pack(agent, self.events[agent], ev, sensed)
+        self.guard.publish(self.pub_base[agent], msg, run=self.run, receivers=(agent,))
+        self.sent_events = True
+
+    def dispatch(self, ev: Any) -> None:
+        if isinstance(ev, GoalResult):
+            sensed: tuple = ()
+            if ev.outcome in (REACHED, ABORTED) and ev.agent in self.live:  # it stands there, idle
+                sensed = self.world.feedback(ev.agent, float(ev.time)).sensed
+            self.emit(ev.agent, ev, sensed)
+            self.finish_goal(ev, sensed)
+        elif isinstance(ev, CarryStarted):
+            for j in ev.group:
+                self.emit(j, ev)
+                obj, handle = self.carrying.get(j, (None, None))
+                if obj == ev.object and handle is not None:  # for action clients: the lift
+                    fb = FollowCells.Feedback()
+                    fb.t, fb.lifted, fb.index = float(ev.time), True, -1
+                    fb.cell.x, fb.cell.y = self.world.objects[ev.object].at
+                    handle.publish_feedback(fb)
+        else:  # Detection, GoalStarted, Stalled
+            self.emit(ev.agent, ev)
 
     # ------------------------------------------------------------------ the clock
 
-    def on_timer(self) -> None:
+    def on_tick(self) -> None:
         if not self.started:
-            if time.monotonic() - self.last_try >= START_S:  # discovery needs the CPU more
-                self.last_try = time.monotonic()
-                self.try_start()
+            self.try_start()
             return
-        wall = time.monotonic()
-        now = self.sim_now()
+        wall, now = time.monotonic(), self.sim_now()
         if self.ended is None:
-            for ev in self.world.advance(now):
-                self.dispatch(ev)
+            self.advance(now)
             self.check_suspects(wall, now)
             if self.world.done:
                 self.end_run(now)
-        if wall - self.last_clock >= 1.0 / self.p["clock_hz"]:
+        self.publish_base_clock(now)
+        if wall - self.last_clock >= 1.0 / POSE_HZ:
             self.last_clock = wall
             self.publish_clock(now)
-        if wall - self.last_pose >= 1.0 / POSE_HZ:
-            self.last_pose = wall
-            self.publish_poses(now)
         if self.result_at is not None:
             # the agents have read the result (or not, after linger): leave
             gone = all(s.get_publisher_count() <= 1 for s in self.kind_subs)  # its own relay's
             if self.p["exit_when_done"] and (gone or wall - self.result_at > self.p["linger"]):
                 self.done = True
-        elif self.ended is not None and wall - self.ended_wall > 10.0 and self.result_at is None:
+        elif self.ended is not None and wall - self.ended_wall > 10.0:
             missing = [i for i in self.live if i not in self.reports]
             self.get_logger().warning(f"no report from agents {missing} after 10 s: the result without them")
             self.finish()
 
+    def advance(self, now: float) -> None:
+        for ev in self.world.advance(now):
+            self.dispatch(ev)
+        self.after_events()
+
+    def after_events(self) -> None:
+        """Events out: the bases' clock at once (a robot commits as soon as it knows it has them
+        all), and a timer for the world's next event if it comes before the next tick."""
+        if self.sent_events:
+            self.publish_base_clock(self.sim_now())
+        self.arm()
+
+    def arm(self) -> None:
+        t = self.world.next_time()
+        if t is None or self.ended is not None or (self.event_at is not None and self.event_at <= t):
+            return
+        delay = (t - self.sim_now()) / self.rtf
+        if delay >= 1.0 / self.p["clock_hz"]:
+            return  # the tick comes first
+        if self.event_timer is not None:
+            self.destroy_timer(self.event_timer)
+        self.event_at = t
+        self.event_timer = self.create_timer(max(delay, 1e-4), self.on_event)
+
+    def on_event(self) -> None:
+        if self.event_timer is not None:
+            self.destroy_timer(self.event_timer)
+        self.event_timer, self.event_at = None, None
+        if self.ended is None:
+            self.advance(self.sim_now())
+
+    def publish_base_clock(self, now: float) -> None:
+        self.sent_events = False
+        clock = BaseClock(now, tuple(self.events[i] for i in self.ids))
+        self.guard.publish(self.pub_base_clock, clock, run=self.run)
+
     def publish_clock(self, now: float) -> None:
         self.pub_clock.publish(Clock(clock=self.stamp(now)))
+        self.publish_poses(now)
         self.write_progress(now)
 
     def write_progress(self, now: float, last: bool = False) -> None:
-        """'step delivered objects' for ost up's progress line, at most every PROGRESS_S (a file
-        written at the clock's rate cost the N=50 world a tenth of its time)."""
+        """'step delivered objects' for ost up's progress line, at most every PROGRESS_S."""
         wall = time.monotonic()
         if not self.p["progress_file"] or (not last and wall - self.progress_at < PROGRESS_S):
             return
@@ -356,46 +438,33 @@ class RealtimeWorldNode(Node):
         _write(self.p["progress_file"], f"{math.floor(now)} {delivered} {len(self.world.objects)}\n", self)
 
     def publish_poses(self, now: float) -> None:
-        stamp = self.stamp(now)
+        """The pose of every robot that moved since its last one (standing robots cost nothing)."""
+        stamp = None
         for i in self.live:
             cell = self.world.position(i, now)
+            if self.posed.get(i) == cell:
+                continue
+            self.posed[i] = cell
+            stamp = stamp or self.stamp(now)
             msg = PoseStamped()
             msg.header.stamp, msg.header.frame_id = stamp, "map"
             msg.pose.position.x, msg.pose.position.y = float(cell[0]), float(cell[1])
             msg.pose.orientation.w = 1.0
             self.pub_pose[i].publish(msg)
 
-    def dispatch(self, ev: Any) -> None:
-        if isinstance(ev, GoalResult):
-            self.finish_goal(ev)
-        elif isinstance(ev, Detection):
-            if ev.agent in self.live:
-                self.guard.publish(self.pub_det[ev.agent], ev, run=self.run, receivers=(ev.agent,))
-                self.detections.setdefault(ev.agent, []).append(wire.to_ros(ev, run=self.run))
-        elif isinstance(ev, CarryStarted):
-            for j in ev.group:
-                obj, handle = self.carrying.get(j, (None, None))
-                if obj == ev.object and handle is not None:
-                    fb = FollowCells.Feedback()
-                    fb.t, fb.lifted, fb.index = float(ev.time), True, -1
-                    fb.cell.x, fb.cell.y = self.world.objects[ev.object].at
-                    handle.publish_feedback(fb)
-
     # ------------------------------------------------------------------ what robots say
 
-    def heard_of(self, agent: int, watermark: int, seq: int) -> None:
-        w, s = self.heard.get(agent, (-1, 0))
-        self.heard[agent] = (max(w, watermark), max(s, seq))
-        self.heard_from(agent)
-
-    def on_sample(self, topic: str, s: Any, data: bytes) -> None:
+    def on_sample(self, pub: Any, s: Sample, data: bytes) -> None:
         sender = s.message.sender
         if sender in self.originals:
-            self.originals[sender].append((self.kind_pubs[topic], data))
-            self.heard_of(sender, int(s.step) - 1, int(s.seq))
+            self.originals[sender].append((pub, data))
+            self.heard[sender].message(s.seq, s.watermark)
+            self.suspects.pop(sender, None)
 
-    def on_mark(self, m: Mark) -> None:
-        self.heard_of(m.sender, m.watermark, m.seq)
+    def on_mark(self, m: Mark | Need) -> None:
+        if m.sender in self.heard:
+            self.heard[m.sender].mark(m.watermark, m.seq)
+            self.suspects.pop(m.sender, None)
 
     def on_digest(self, d: Digest) -> None:
         self.digests.setdefault(d.stamp, {})[d.sender] = (d.input, d.output)
@@ -412,9 +481,6 @@ class RealtimeWorldNode(Node):
 
     def on_alive_sample(self, agent: int, _msg=None) -> None:
         self.alive_seen.add(agent)
-        self.heard_from(agent)
-
-    def heard_from(self, agent: int) -> None:
         self.suspects.pop(agent, None)
 
     def check_suspects(self, wall: float, now: float) -> None:
@@ -425,24 +491,26 @@ class RealtimeWorldNode(Node):
 
     def declare_failed(self, agent: int, now: float) -> None:
         """The robot is gone: stopped in the world, declared to the survivors with a notice stamped
-        above its last watermark, and its signed messages published again for any survivor that
-        lacks one of those that count."""
+        above every watermark heard from it, counting the messages the world holds without a gap
+        (it relays them: each survivor can have them all), its sensing counted up to the last
+        watermark among those — and its sealed messages published again."""
         if agent not in self.live:
             return
         self.live.discard(agent)
         self.world.kill(agent, now)  # its partners' goals end at the next advance
-        watermark, seq = self.heard[agent]
-        # stamped by the time now, not the timer's: declaring a robot republishes what it signed,
+        h = self.heard[agent]
+        # stamped by the time now, not the timer's: declaring a robot republishes what it sealed,
         # and a 50-robot world declaring several in one pass took seconds — a robot only thought
         # failed commits on meanwhile, and its notice must come after what it committed
-        stamp = max(watermark + 1, math.ceil(max(now, self.sim_now()) - 1e-9))
-        notice = self.world.notice(agent, stamp, seq)
+        stamp = max(h.highest + 1, math.ceil(max(now, self.sim_now()) - 1e-9))
+        notice = self.world.notice(agent, stamp, h.contiguous, sensed_until=float(h.sensed_until()))
         self.guard.publish(self.pub_lost, notice, run=self.run)
         for pub, data in self.originals[agent]:
-            self.guard.relay(pub, data)  # as the robot itself sealed it
+            self.guard.relay(pub, data)  # as it was sealed by the robot itself
         self.get_logger().warning(
             f"agent {agent} lost (no liveliness for 2 x {self.failure_timeout:g} s): failed at sim "
-            f"time {now:.1f}, notice stamped {notice.t}; {len(self.live)} survivors"
+            f"time {now:.1f}, notice stamped {notice.t}, its sensing counted up to "
+            f"{h.sensed_until()}; {len(self.live)} survivors"
         )
         if not self.live:
             self.end_run(now)
@@ -456,8 +524,7 @@ class RealtimeWorldNode(Node):
         self.world.end = max(ends, default=now)
         self.ended, self.ended_wall = self.world.end, time.monotonic()
         self.completed = self.world.done and not self.world.undeliverable()
-        end = RunEnd(self.world.t, self.world.t, self.completed, run=self.run)
-        self.guard.publish(self.pub_end, end)
+        self.guard.publish(self.pub_end, RunEnd(self.world.t, self.world.t, self.completed, run=self.run))
         self.write_progress(self.world.end, last=True)
         self.get_logger().info(f"run over at sim time {self.world.end:g}; collecting reports")
         if not self.live:

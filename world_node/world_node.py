@@ -515,14 +515,12 @@ def main(args=None) -> int:
     if realtime_from_args(sys.argv if args is None else args):
         from world_node.realtime import RealtimeWorldNode
 
-        # rclpy's EventsExecutor cannot serve actions (a goal's answer never comes): the single one
         return run_node(
             "world_node",
             RealtimeWorldNode,
             args,
             done=lambda node: node.done,
             code=lambda node: node.exit_code,
-            executor_name=lambda _node: "single",
             interrupted=130,
         )
     return run_node(

@@ -294,12 +294,15 @@ class Sample:
     coordination's selections); ``seq``: its place among everything the sender broadcast in that
     step (all kinds): the world's :class:`Tick` says how many that was, so a receiver knows when
     it has them all and puts them back in the sender's outbox order. ``run``: the world's run id.
+    Without a barrier (realtime runs) ``step`` is the message's stamp, ``seq`` the sender's count
+    of its messages and ``watermark`` the sender's watermark as it sent it (0 in lockstep).
     """
 
     message: AgentMessage
     step: int
     seq: int
     run: str = ""
+    watermark: int = 0
 
 
 @dataclass(frozen=True)

@@ -11,8 +11,9 @@ MARKS = "marks"  # agents → agents (and the world): watermarks
 NEEDS = "needs"  # agents → agents: a batch waits for watermarks
 LOST = "lost"  # world → agents: stamped failure notices (latched)
 DIGESTS = "digests"  # agents → world (and anyone): coordination digests
+BASE_CLOCK = "base_clock"  # world → agents: sim time, and how many events each base has sent
 
-__all__ = ["DIGESTS", "LOST", "MARKS", "NEEDS", "Lost", "message_kinds"]
+__all__ = ["BASE_CLOCK", "DIGESTS", "LOST", "MARKS", "NEEDS", "Lost", "message_kinds"]
 
 
 def message_kinds(protocol: str) -> tuple[type, ...]:
@@ -26,14 +27,15 @@ def follow_action(agent: int) -> str:
     return f"agent_{agent}/follow_cells"
 
 
-def where_service(agent: int) -> str:
-    """Where the robot's base will be next: ``ost_msgs/srv/Where``."""
-    return f"agent_{agent}/where"
+def send_goal_service(agent: int) -> str:
+    """The base action's goal service (``FollowCells.Impl.SendGoalService``): the one part of the
+    action a robot uses — it reads what became of its goals from its base's events."""
+    return f"{follow_action(agent)}/_action/send_goal"
 
 
-def detections_topic(agent: int) -> str:
-    """World → the robot: objects coming into its sensor (``ost_msgs/msg/Detection``)."""
-    return f"agent_{agent}/detections"
+def base_topic(agent: int) -> str:
+    """World → the robot: its base's events, numbered, in order (``ost_msgs/msg/BaseEvent``)."""
+    return f"agent_{agent}/base"
 
 
 def pose_topic(agent: int) -> str:

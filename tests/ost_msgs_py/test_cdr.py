@@ -19,8 +19,7 @@ from ost_msgs_py import cdr, wire
 from ost_msgs_py.errors import MessageError
 from ost_ros.lockstep.messages import Sample
 from ost_ros.messages import ObjectInfo
-from ost_ros.realtime.messages import Digest, Lost, Mark, Need, RtStatus
-from ost_ros.realtime.world import Detection
+from ost_ros.realtime.messages import BaseClock, BaseEvent, Digest, Lost, Mark, Need, RtStatus
 from tests.ost_msgs_py.test_wire import built, protocol_msgs, runtime_msgs
 
 INTERFACES = sorted(
@@ -116,13 +115,24 @@ def _realtime():
             delivered=st.lists(st.integers(0, 99), max_size=3).map(tuple),
         ),
         st.builds(
-            Detection,
+            BaseEvent,
             st.integers(0, 99),
+            st.integers(0, 2**31),
+            st.sampled_from(["started", "stalled", "lifted", "detected", "ended"]),
+            st.integers(0, 2**40),
             floats,
             st.tuples(st.integers(0, 500), st.integers(0, 200)),
+            st.integers(0, 1),
+            floats,
+            floats,
+            floats,
+            st.integers(-1, 99),
+            st.lists(st.integers(0, 99), max_size=4).map(tuple),
             st.lists(infos, max_size=2).map(tuple),
             st.lists(infos, max_size=3).map(tuple),
+            st.text(max_size=8),
         ),
+        st.builds(BaseClock, floats, st.lists(st.integers(0, 2**31), max_size=60).map(tuple)),
     )
 
 
