@@ -155,9 +155,9 @@ def main() -> int:
     p.add_argument("--team", type=int, default=50, help="agents in the team (tags: this + 1)")
     p.add_argument("--json", action="store_true", help="rows as JSON lines")
     a = p.parse_args()
-    d = tempfile.mkdtemp(prefix="bench_auth_")
-    team = auth.make_keys(d, range(a.team), run="bench")
-    keys = {m: auth.Keys(team, m, auth.load_private(d, m)) for m in (auth.WORLD, 0, 1)}
+    with tempfile.TemporaryDirectory(prefix="bench_auth_") as d:
+        team = auth.make_keys(d, range(a.team), run="bench")
+        keys = {m: auth.Keys(team, m, auth.load_private(d, m)) for m in (auth.WORLD, 0, 1)}
     signing = ed.signing_key()
     rows = [measure(n, v, keys, signing, a.runs_of) for n, v in sorted(sample_messages(20).items())]
     summary = once(team, a.runs_of)

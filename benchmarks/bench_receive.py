@@ -184,7 +184,8 @@ def main() -> int:
 
     env = _env()  # dds_env.sh's, and a domain of its own
     os.environ.update(env)
-    keys = tempfile.mkdtemp(prefix="bench_receive_")
+    keys_dir = tempfile.TemporaryDirectory(prefix="bench_receive_")  # removed at the end
+    keys = keys_dir.name
     auth.make_keys(keys, range(TEAM), run="bench")
     shm_before = set(os.listdir("/dev/shm"))
     load = os.getloadavg()[0]
@@ -204,6 +205,7 @@ def main() -> int:
                 proc.kill()
                 proc.wait()
         release_domain(int(env["ROS_DOMAIN_ID"]))
+        keys_dir.cleanup()
         for f in set(os.listdir("/dev/shm")) - shm_before:
             if f.startswith(("fastrtps_", "sem.fastrtps_", "fast_datasharing")):
                 with contextlib.suppress(OSError):

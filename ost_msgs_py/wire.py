@@ -1,5 +1,11 @@
 """The message dataclasses on the ROS wire: conversion to and from the ``ost_msgs`` interfaces.
 
+Two ways: to and from the generated message classes (:func:`to_ros`, :func:`from_ros`: what tools
+and a realtime robot's action carry), and to and from the CDR bytes DDS carries, without a
+generated object (:func:`to_cdr`, :func:`decode`, :func:`from_cdr`; the codec is :mod:`.cdr`):
+every message a node publishes or receives, every recorded one read back. Both go through the
+same converters, built for each target: the generated classes or their light twins.
+
 Every message dataclass on the wire — the protocols' (:mod:`ost_ros.messages` and each protocol's
 own, as the registry lists them: :func:`ost_ros.protocols.messages`) and the lockstep's
 (:mod:`ost_ros.lockstep.messages`) — has an interface of the same name in the ``ost_msgs``
@@ -21,7 +27,8 @@ A protocol message travels as a :class:`~ost_ros.lockstep.messages.Sample`: the 
 ``run``, ``step`` (when it was broadcast) and ``seq`` (its place among everything the sender
 broadcast in that step). Anything that
 does not fit raises :class:`MessageError` naming the field, e.g.
-``acted.action.kind: 'jump' is not one of wait, move, carry``.
+``acted.action.kind: 'jump' is not one of wait, move, carry`` (the field paths are built only
+for a message that fails: a receiver converts thousands a second).
 """
 
 from __future__ import annotations
@@ -248,8 +255,7 @@ def _codec(cls: type, light: bool = False) -> _Codec:
         return known
     target: Any = _target(cls.__name__, light)
     types_ = ros_type(cls).get_fields_and_field_types()  # type: ignore[attr-defined]
-    module = __import__(cls.__module__, fromlist=["_"])
-    hints = typing.get_type_hints(cls, globalns=dict(vars(module)))
+    hints = _hints(cls)
     fields = []
     for f in dataclasses.fields(cls):
         if f.name in _NOT_ON_WIRE or any(issubclass(cls, c) and f.name == n for c, n in _WORLD_FIELDS):
@@ -260,6 +266,13 @@ def _codec(cls: type, light: bool = False) -> _Codec:
         fields.append((f.name, to, frm))
     _CODECS[(cls, light)] = c = _Codec(cls, target, fields, light)
     return c
+
+
+@functools.cache
+def _hints(cls: type) -> dict[str, Any]:
+    """A dataclass's type hints (both targets' codecs read them)."""
+    module = __import__(cls.__module__, fromlist=["_"])
+    return typing.get_type_hints(cls, globalns=dict(vars(module)))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -306,7 +319,11 @@ def from_ros(msg: Any) -> Any:
     :class:`Sample` for a protocol message)."""
     reader = _BY_ROS.get(type(msg))
     if reader is None:
-        raise MessageError(f"{type(msg).__name__}: not an ost_msgs message this runtime knows")
+        cls = _GENERATED.get(type(msg))
+        if cls is None:
+            raise MessageError(f"{type(msg).__name__}: not an ost_msgs message this runtime knows")
+        reader = _BY_ROS[type(msg)] = _reader(cls, light=False)  # (the generated classes' codecs
+        # are built when first used: the nodes' messages go through the light ones)
     return reader.read(msg)
 
 
@@ -332,7 +349,7 @@ def decode(kind: type | str, data: bytes | bytearray) -> tuple[Any, int]:
     if isinstance(kind, str):
         package, _, name = kind.partition("/msg/")
         generated = getattr(ros, name, None) if package == "ost_msgs" else None
-        if generated is None or generated not in _BY_ROS:
+        if generated is None or generated not in _GENERATED:
             raise MessageError(f"{kind}: not an ost_msgs message this runtime knows")
     else:
         generated = ros_type(kind)
@@ -371,13 +388,14 @@ def sender_of(msg: Any) -> str:
     return "unknown" if not isinstance(who, int) else auth.signer_name(who)
 
 
+def _reader(cls: type, light: bool) -> _Reader:
+    return _Reader(_codec(cls, light).from_ros, getattr(cls, "TYPE", cls.__name__), cls in PROTOCOL_MESSAGES)
+
+
 _AUTH = cdr.message_class(ros.Auth)
-# generated or light class -> its reader
-_BY_ROS: dict[type, _Reader] = {}
+# Every dataclass's light codec is built now (a field missing from its interface fails at import).
+_GENERATED: dict[type, type] = {}  # generated class -> dataclass
+_BY_ROS: dict[type, _Reader] = {}  # light (and, once used, generated) class -> its reader
 for _cls in (*PROTOCOL_MESSAGES, *RUNTIME_MESSAGES, *REALTIME_MESSAGES):
-    for _light in (False, True):
-        _c = _codec(_cls, _light)
-        _generated = ros_type(_cls)
-        _BY_ROS[cdr.message_class(_generated) if _light else _generated] = _Reader(
-            _c.from_ros, getattr(_cls, "TYPE", _cls.__name__), _cls in PROTOCOL_MESSAGES
-        )
+    _GENERATED[ros_type(_cls)] = _cls
+    _BY_ROS[cdr.message_class(ros_type(_cls))] = _reader(_cls, light=True)

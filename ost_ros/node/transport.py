@@ -257,9 +257,9 @@ class Receiver:
     (forged), the signer's counter (replayed), the dataclass (its own checks). The replay window
     comes last of the checks, unlike the tag: a dead robot's messages relayed to those that hold
     them carry their original counters (``skip`` must see them first), and a message refused for
-    its claim must not mark a counter as seen (one robot's key sealing as itself with counters of
-    its own clock would make the real robot's next messages look like replays). Warnings are
-    built only for a dropped message."""
+    its claim must mark no counter as seen (messages sealed with a stolen robot key but claiming
+    others, counted from the thief's clock, would push the robot's window past its own next
+    counters). Warnings are built only for a dropped message."""
 
     __slots__ = ("callback", "decode", "guard", "keep_bytes", "kind", "skip", "throttle", "topic")
 
