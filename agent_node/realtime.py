@@ -22,20 +22,19 @@ robot has every base event up to that time and may commit it (:meth:`RealtimeAge
 
 from __future__ import annotations
 
-import array
 import os
 import signal
 import time
 from collections import deque
 from typing import Any
 
-from ost_msgs.action import FollowCells
 from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
 from rclpy.node import Node
 from std_msgs.msg import String
 
 from ost_msgs_py import wire
+from ost_msgs_py.auth import WORLD
 from ost_ros.lockstep.messages import AgentReport, Ready, RunEnd, Sample, ScheduleEntry
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
@@ -43,17 +42,17 @@ from ost_ros.node.params import declare_agent
 from ost_ros.node.signing import node_auth
 from ost_ros.realtime.agent import AskFeedback, Output, Publish, RealtimeAgent, SendGoal, WakeAt
 from ost_ros.realtime.base import mirror_of, unpack
-from ost_ros.realtime.messages import BaseClock, BaseEvent, Digest, Envelope, Lost, Mark, Need
+from ost_ros.realtime.messages import BaseClock, BaseEvent, BaseGoal, Digest, Envelope, Lost, Mark, Need
 from ost_ros.realtime.run import make_agent
 from ost_ros.realtime.stamps import LateMessage
-from ost_ros.realtime.world import Carry, CarryStarted, Detection, Follow, GoalResult, Stand
+from ost_ros.realtime.world import Carry, CarryStarted, Detection, Follow, GoalResult
 from ost_ros.team import TeamInfo
 
 START_S = 0.05  # how often it looks whether its endpoints are matched, before the run
 # A robot held up this long (wall) by a batch says what it waits for (throttled): a stalled team
 # names the robot it waits on, and that robot says what it waits for.
 STALL_S = 5.0
-SENT_GOALS = 64  # send_goal requests whose answers it keeps waiting for (it reads none of them)
+DEBUG = bool(os.environ.get("OST_RT_DEBUG"))
 
 
 class RealtimeAgentNode(Node):
@@ -86,7 +85,6 @@ class RealtimeAgentNode(Node):
         self.base_in = 0  # base events taken, in order (1..base_in)
         self.base_ahead: dict[int, BaseEvent] = {}  # events that came before one still missing
         self.base_owed: deque[tuple[float, int]] = deque()  # (time, events by then) not all in yet
-        self.wake_timer: Any = None
         self.wake_at: float | None = None
         self.report_sent = False
         self.die_at = p["die_at_step"]
@@ -97,10 +95,10 @@ class RealtimeAgentNode(Node):
         self.wall = RosClock(clock_type=ClockType.STEADY_TIME)
         self.last_goal = 0  # the id of the goal sent last
         self.ask_at: float | None = None  # a decision waiting for its picture of its base
-        self.sent_goals: deque[Any] = deque()  # send_goal futures (answers not read)
         self.said = {"messages": 0, "marks": 0, "needs": 0}  # what it published (the report's log line)
         self._build_endpoints()
         self.start_timer = self.create_timer(START_S, self.try_ready, clock=self.wall)
+        self.wake_timer = self.create_timer(1.0, self.on_wake, clock=self.wall, autostart=False)
         self.stall_timer = self.create_timer(STALL_S / 2, self.watch, clock=self.wall)
         self.asking: tuple[float | None, float] = (None, 0.0)  # (the decision waiting, since)
 
@@ -146,8 +144,10 @@ class RealtimeAgentNode(Node):
         self.sub_base = tp.subscribe(
             self, BaseEvent, rtp.base_topic(me), self.on_base, q, g, th, skip=other_run
         )
-        # The base's action, as its goals' sender only: the events say what became of them.
-        self.send_goal = self.create_client(FollowCells.Impl.SendGoalService, rtp.send_goal_service(me))
+        # Its goals for its base, one way: its base's events say what became of them.
+        self.pub_goals = self.create_publisher(
+            wire.ros_type(BaseGoal), rtp.BASE_GOALS, q, event_callbacks=tp.no_events_pub()
+        )
         self.pub_ready = self.create_publisher(wire.ros_type(Ready), tp.READY, tp.LATCHED_ALL_QOS)
         self.pub_report = self.create_publisher(wire.ros_type(AgentReport), tp.REPORTS, tp.LATCHED_ALL_QOS)
         self.sub_end = tp.subscribe(self, RunEnd, tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS, g, th)
@@ -175,7 +175,7 @@ class RealtimeAgentNode(Node):
             ("base", self.sub_base.get_publisher_count() >= 1),
             ("lost", self.sub_lost.get_publisher_count() >= 1),
             ("digests", self.pub_digests.get_subscription_count() >= 1),
-            ("follow_cells", self.send_goal.service_is_ready()),
+            ("base_goals", self.pub_goals.get_subscription_count() >= 1),
             ("alive", self.pub_alive is None or self.pub_alive.get_subscription_count() >= 1),
         ):
             if not ok:
@@ -238,19 +238,18 @@ class RealtimeAgentNode(Node):
             self.rt.base_known(t)
 
     def arm(self, t: float) -> None:
-        """A timer for sim time ``t`` (the earliest asked for wins)."""
+        """The wake-up timer for sim time ``t`` (the earliest asked for wins): one timer, set
+        again (a timer made and destroyed per wake-up cost half a millisecond each)."""
         if self.wake_at is not None and self.wake_at <= t:
             return
         self.wake_at = t
-        if self.wake_timer is not None:
-            self.destroy_timer(self.wake_timer)
         delay = max(0.0, (t - self.now()) / self.rtf)
-        self.wake_timer = self.create_timer(max(delay, 1e-4), self.on_wake, clock=self.wall)
+        self.wake_timer.timer_period_ns = max(int(delay * 1e9), 100_000)
+        self.wake_timer.reset()
 
     def on_wake(self) -> None:
-        if self.wake_timer is not None:
-            self.destroy_timer(self.wake_timer)
-        self.wake_timer, self.wake_at = None, None
+        self.wake_timer.cancel()
+        self.wake_at = None
         self.fire(self.now())
 
     def fire(self, now: float) -> None:
@@ -391,26 +390,21 @@ class RealtimeAgentNode(Node):
             self.said["needs"] += 1
 
     def send(self, o: SendGoal) -> None:
-        """A goal for its base: on the action's send_goal service (the acceptance is not read —
-        the base's events say how it went)."""
+        """A goal for its base, on ``base_goals`` (one way: the base's events say how it went)."""
         self.last_goal = o.id
         self.mirror.sent(o.id, o.goal)
-        g = FollowCells.Goal()
-        g.id, g.at, g.state = int(o.id), float(o.at), o.goal.state
-        if isinstance(o.goal, Follow):
-            g.kind = FollowCells.Goal.FOLLOW
-            g.path = [wire.to_ros_cell(c) for c in o.goal.path]
-        elif isinstance(o.goal, Carry):
-            g.kind, g.object, g.group = FollowCells.Goal.CARRY, o.goal.object, list(o.goal.group)
+        g = o.goal
+        if isinstance(g, Follow):
+            goal = BaseGoal(self.me, o.id, "follow", float(o.at), g.path, state=g.state)
+        elif isinstance(g, Carry):
+            goal = BaseGoal(
+                self.me, o.id, "carry", float(o.at), object=g.object, group=g.group, state=g.state
+            )
         else:
-            assert isinstance(o.goal, Stand)
-            g.kind = FollowCells.Goal.STAND
-        req = FollowCells.Impl.SendGoalService.Request()
-        req.goal_id.uuid = array.array("B", os.urandom(16))
-        req.goal = g
-        self.sent_goals.append(self.send_goal.call_async(req))
-        while len(self.sent_goals) > SENT_GOALS:  # an answer that never came: not waited for
-            self.send_goal.remove_pending_request(self.sent_goals.popleft())
+            goal = BaseGoal(self.me, o.id, "stand", float(o.at), state=g.state)
+        self.guard.publish(self.pub_goals, goal, run=self.run, receivers=(WORLD,))
+        if DEBUG:
+            self.get_logger().info(f"sent goal {o.id} {goal.kind} at {self.now():.1f}")
 
     # ------------------------------------------------------------------ the end
 

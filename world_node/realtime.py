@@ -39,15 +39,19 @@ from __future__ import annotations
 import functools
 import json
 import math
+import os
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any
 
+import rclpy
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
 from ost_msgs.action import FollowCells
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
@@ -63,7 +67,7 @@ from ost_ros.node.params import ParameterError, declare_role, node_scenario
 from ost_ros.node.run import process_age, write_file
 from ost_ros.node.signing import node_auth
 from ost_ros.realtime.base import pack
-from ost_ros.realtime.messages import BaseClock, BaseEvent, Digest, Mark, Need
+from ost_ros.realtime.messages import BaseClock, BaseEvent, BaseGoal, Digest, Mark, Need
 from ost_ros.realtime.world import (
     ABORTED,
     REACHED,
@@ -81,6 +85,88 @@ from ost_ros.scenario import ScenarioError
 PROGRESS_S = 0.25  # the progress file, at most this often (wall)
 POSE_HZ = 10.0  # poses of robots that moved, and the rosgraph clock (wall)
 START_S = 0.05  # how often it looks whether the team is ready, before the run
+DEBUG = bool(os.environ.get("OST_RT_DEBUG"))
+RESULT_KEPT_S = 10  # an ended goal's result, kept for its client (s)
+
+
+class BasesNode(Node):
+    """``<ns>/bases``: the robots' bases as actions, one ``FollowCells`` server per robot, and the
+    timer of the world's next event — spun by rclpy's SingleThreadedExecutor in a thread of its
+    own. rclpy's EventsExecutor (the world's) resumes a goal's waiting coroutine again and again
+    (one waiting goal cost 0.4 of a core) and, serving actions, now and then left a goal request
+    untaken; rclpy's own executor serves actions as designed and sleeps while nothing comes. The
+    world's state is shared under ``world.lock``: a goal is handed to the world here, in this
+    thread (``world.execute``), and its result comes back when the world ends it."""
+
+    def __init__(self, world: RealtimeWorldNode):
+        super().__init__("bases", namespace=tp.NAMESPACE)
+        self.world = world
+        self.servers = {
+            i: ActionServer(
+                self,
+                FollowCells,
+                rtp.follow_action(i),
+                execute_callback=functools.partial(self.execute, i),
+                goal_callback=lambda _goal: GoalResponse.ACCEPT,
+                cancel_callback=lambda _goal: CancelResponse.REJECT,  # a new goal preempts
+                # an ended goal is kept this long for a client to ask its result (ros2 action
+                # send_goal asks at once; a robot reads its base's events instead): the status
+                # array lists every goal kept, and at the 900 s default it grew with the run
+                result_timeout=RESULT_KEPT_S,
+            )
+            for i in world.ids
+        }
+        # The world's next event: a timer set for it (in this thread), re-set from the other one
+        # through the guard condition (a wait in progress is not woken by a timer's reset).
+        self.event_timer = self.create_timer(1.0, self.on_event, autostart=False)
+        self.wake = self.create_guard_condition(self.arm)
+        self.executor_ = SingleThreadedExecutor()
+        self.executor_.add_node(self)
+        self.thread = threading.Thread(target=self.spin, name="bases", daemon=True)
+        self.running = True
+
+    def spin(self) -> None:
+        while self.running and rclpy.ok():
+            try:
+                self.executor_.spin_once(timeout_sec=0.5)
+            except Exception:  # the context shut down under it (the process is ending)
+                if rclpy.ok():
+                    raise
+                return
+
+    def stop(self) -> None:
+        self.running = False
+        self.wake.trigger()
+        self.thread.join(timeout=2.0)
+
+    async def execute(self, agent: int, handle: Any) -> Any:
+        """One goal of robot ``agent``: to the world; its result when the world ends it."""
+        fut: Future = Future()
+        with self.world.lock:
+            self.world.execute(agent, handle, fut)
+        self.arm()
+        res = await fut
+        if res.outcome == REACHED:
+            handle.succeed()
+        else:
+            handle.abort()
+        return res
+
+    def arm(self) -> None:
+        """The event timer, set for the world's next event (if it comes before the next tick)."""
+        with self.world.lock:
+            delay = self.world.next_event_in()
+        if delay is None:
+            self.event_timer.cancel()
+        else:
+            self.event_timer.timer_period_ns = max(int(delay * 1e9), 100_000)
+            self.event_timer.reset()
+
+    def on_event(self) -> None:
+        self.event_timer.cancel()
+        with self.world.lock:
+            self.world.advance(self.world.sim_now())
+        self.arm()
 
 
 @dataclass
@@ -155,11 +241,10 @@ class RealtimeWorldNode(Node):
         self.events = dict.fromkeys(self.ids, 0)  # base events sent to each robot
         self.sent_events = False  # since the last base clock
         self.posed: dict[int, tuple[int, int]] = {}  # the cell each robot's last pose showed
-        self.goals: dict[tuple[int, int], tuple[Future, Any]] = {}  # (agent, goal id) -> ...
+        self.goals: dict[tuple[int, int], tuple[Any, Future]] = {}  # (agent, goal id) -> (handle, result)
         self.carrying: dict[int, tuple[int, Any]] = {}  # agent -> (object, goal handle) of its carry
-        self.event_timer: Any = None
-        self.event_at: float | None = None
         self._build_endpoints(p)
+        self.bases.thread.start()
         self.timer = self.create_timer(START_S, self.on_tick)
         self.get_logger().info(
             f"realtime: waiting for {len(self.ids)} agents ({self.fingerprint}); rtf {self.rtf:g}"
@@ -199,16 +284,11 @@ class RealtimeWorldNode(Node):
         self.sub_marks = tp.subscribe(self, Mark, rtp.MARKS, self.on_mark, q, g, th, skip=other_run)
         self.sub_needs = tp.subscribe(self, Need, rtp.NEEDS, self.on_mark, q, g, th, skip=other_run)
         self.sub_digests = tp.subscribe(self, Digest, rtp.DIGESTS, self.on_digest, q, g, th, skip=other_run)
-        self.servers, self.pub_base, self.pub_pose = {}, {}, {}
+        self.sub_goals = tp.subscribe(self, BaseGoal, rtp.BASE_GOALS, self.on_goal, q, g, th, skip=other_run)
+        self.pub_base, self.pub_pose = {}, {}
+        self.lock = threading.RLock()  # the world's state: this thread and the bases' share it
+        self.bases = BasesNode(self)
         for i in self.ids:
-            self.servers[i] = ActionServer(
-                self,
-                FollowCells,
-                rtp.follow_action(i),
-                execute_callback=functools.partial(self.execute, i),
-                goal_callback=lambda _goal: GoalResponse.ACCEPT,
-                cancel_callback=lambda _goal: CancelResponse.REJECT,  # a new goal preempts
-            )
             self.pub_base[i] = self.create_publisher(
                 wire.ros_type(BaseEvent), rtp.base_topic(i), q, event_callbacks=quiet()
             )
@@ -293,11 +373,28 @@ class RealtimeWorldNode(Node):
 
     # ------------------------------------------------------------------ the base
 
-    async def execute(self, agent: int, handle) -> Any:
-        """One goal of robot ``agent``: handed to the world now; the result when it ends."""
+    def on_goal(self, g: BaseGoal) -> None:
+        """A robot's goal for its own base (``base_goals``)."""
+        goal: Follow | Stand | Carry
+        if g.kind == "follow":
+            goal = Follow(g.path, g.state)
+        elif g.kind == "carry":
+            goal = Carry(g.object, g.group, g.state)
+        elif g.kind == "stand":
+            goal = Stand(g.state)
+        else:
+            self.throttle.warn(
+                self.sub_goals.topic_name, f"agent {g.agent}", f"kind {g.kind!r}: not follow, stand or carry"
+            )
+            return
+        with self.lock:
+            self.apply(g.agent, g.id, goal, g.at)
+        self.bases.wake.trigger()  # (the event timer, for the goal's events)
+
+    def execute(self, agent: int, handle: Any, fut: Future) -> None:
+        """(The bases' thread, under the lock) an action client's goal for robot ``agent``'s base
+        (an operator's, ``ros2 action send_goal``): ``fut`` gets its result when it ends."""
         req = handle.request
-        fut: Future = Future()
-        self.goals[(agent, req.id)] = (fut, handle)
         goal: Follow | Stand | Carry
         if req.kind == FollowCells.Goal.FOLLOW:
             goal = Follow(tuple((c.x, c.y) for c in req.path), req.state)
@@ -306,25 +403,28 @@ class RealtimeWorldNode(Node):
             self.carrying[agent] = (int(req.object), handle)
         else:
             goal = Stand(req.state)
+        self.goals[(agent, req.id)] = (handle, fut)
+        self.apply(agent, int(req.id), goal, float(req.at))
+
+    def apply(self, agent: int, gid: int, goal: Follow | Stand | Carry, at: float) -> None:
+        """(Under the lock) goal ``gid`` for ``agent``'s base, handed to the world now."""
+        if DEBUG:
+            self.get_logger().info(
+                f"goal {gid} of agent {agent} ({type(goal).__name__}) at {self.sim_now():.1f}"
+            )
         if agent not in self.live or not self.started or self.ended is not None:
             why = "the robot has failed" if self.started else "the run has not started"
-            self.dispatch(GoalResult(agent, req.id, "refused", self.sim_now(), (0, 0), "FAILED", why))
+            self.dispatch(GoalResult(agent, gid, "refused", self.sim_now(), (0, 0), "FAILED", why))
         else:
-            for ev in self.world.goal(agent, req.id, goal, max(float(req.at), self.sim_now())):
+            for ev in self.world.goal(agent, gid, goal, max(at, self.sim_now())):
                 self.dispatch(ev)
             self.after_events()
-        res = await fut
-        if res.outcome == REACHED:
-            handle.succeed()
-        else:
-            handle.abort()
-        return res
 
     def finish_goal(self, r: GoalResult, sensed: tuple = ()) -> None:
         entry = self.goals.pop((r.agent, r.goal), None)
         if entry is None:
             return
-        fut, handle = entry
+        handle, fut = entry
         if self.carrying.get(r.agent, (None, None))[1] is handle:
             del self.carrying[r.agent]
         res = FollowCells.Result()
@@ -332,6 +432,7 @@ class RealtimeWorldNode(Node):
         res.cell.x, res.cell.y = r.cell
         res.sensed = [wire.to_ros(o) for o in sensed]
         fut.set_result(res)
+        self.bases.wake.trigger()  # (from this thread or the bases': its coroutine resumes)
 
     def emit(self, agent: int, ev: Any, sensed: tuple = ()) -> None:
         """Robot ``agent``'s base event ``ev``, numbered, on its base topic (to it alone)."""
@@ -365,18 +466,22 @@ class RealtimeWorldNode(Node):
 
     def on_tick(self) -> None:
         if not self.started:
-            self.try_start()
+            with self.lock:
+                self.try_start()
             return
         wall, now = time.monotonic(), self.sim_now()
-        if self.ended is None:
-            self.advance(now)
-            self.check_suspects(wall, now)
-            if self.world.done:
-                self.end_run(now)
-        self.publish_base_clock(now)
+        with self.lock:
+            if self.ended is None:
+                self.advance(now)
+                self.check_suspects(wall, now)
+                if self.world.done:
+                    self.end_run(now)
+            self.publish_base_clock(now)
+        self.bases.wake.trigger()  # (the event timer, for what this tick changed)
         if wall - self.last_clock >= 1.0 / POSE_HZ:
             self.last_clock = wall
-            self.publish_clock(now)
+            with self.lock:
+                self.publish_clock(now)
         if self.result_at is not None:
             # the agents have read the result (or not, after linger): leave
             gone = all(s.get_publisher_count() <= 1 for s in self.kind_subs)  # its own relay's
@@ -388,35 +493,26 @@ class RealtimeWorldNode(Node):
             self.finish()
 
     def advance(self, now: float) -> None:
-        for ev in self.world.advance(now):
-            self.dispatch(ev)
+        """(Under the lock) the world's events due by ``now``, out."""
+        if self.ended is None:
+            for ev in self.world.advance(now):
+                self.dispatch(ev)
         self.after_events()
 
     def after_events(self) -> None:
         """Events out: the bases' clock at once (a robot commits as soon as it knows it has them
-        all), and a timer for the world's next event if it comes before the next tick."""
+        all)."""
         if self.sent_events:
             self.publish_base_clock(self.sim_now())
-        self.arm()
 
-    def arm(self) -> None:
-        t = self.world.next_time()
-        if t is None or self.ended is not None or (self.event_at is not None and self.event_at <= t):
-            return
+    def next_event_in(self) -> float | None:
+        """(Under the lock) wall seconds to the world's next event, if it comes before the next
+        tick (which handles it otherwise); None: nothing to time."""
+        t = self.world.next_time() if self.started and self.ended is None else None
+        if t is None:
+            return None
         delay = (t - self.sim_now()) / self.rtf
-        if delay >= 1.0 / self.p["clock_hz"]:
-            return  # the tick comes first
-        if self.event_timer is not None:
-            self.destroy_timer(self.event_timer)
-        self.event_at = t
-        self.event_timer = self.create_timer(max(delay, 1e-4), self.on_event)
-
-    def on_event(self) -> None:
-        if self.event_timer is not None:
-            self.destroy_timer(self.event_timer)
-        self.event_timer, self.event_at = None, None
-        if self.ended is None:
-            self.advance(self.sim_now())
+        return None if delay >= 1.0 / self.p["clock_hz"] else max(delay, 0.0)
 
     def publish_base_clock(self, now: float) -> None:
         self.sent_events = False
@@ -535,7 +631,8 @@ class RealtimeWorldNode(Node):
             return
         self.reports[r.agent] = r
         if self.ended is not None and self.result_at is None and all(i in self.reports for i in self.live):
-            self.finish()
+            with self.lock:
+                self.finish()
 
     def disagreements(self) -> tuple[int, int]:
         """(batches whose digests differ between two robots, batches compared). A survivor that
@@ -584,6 +681,12 @@ class RealtimeWorldNode(Node):
     @property
     def exit_code(self) -> int:
         return 0 if self.completed else 1
+
+    def destroy_node(self) -> None:
+        """The bases' thread and node first, then this one."""
+        self.bases.stop()
+        self.bases.destroy_node()
+        super().destroy_node()
 
 
 def _write(path: str, text: str, node: Node) -> None:

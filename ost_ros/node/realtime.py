@@ -12,8 +12,9 @@ NEEDS = "needs"  # agents → agents: a batch waits for watermarks
 LOST = "lost"  # world → agents: stamped failure notices (latched)
 DIGESTS = "digests"  # agents → world (and anyone): coordination digests
 BASE_CLOCK = "base_clock"  # world → agents: sim time, and how many events each base has sent
+BASE_GOALS = "base_goals"  # agents → world: each robot's goals for its own base
 
-__all__ = ["BASE_CLOCK", "DIGESTS", "LOST", "MARKS", "NEEDS", "Lost", "message_kinds"]
+__all__ = ["BASE_CLOCK", "BASE_GOALS", "DIGESTS", "LOST", "MARKS", "NEEDS", "Lost", "message_kinds"]
 
 
 def message_kinds(protocol: str) -> tuple[type, ...]:
@@ -25,12 +26,6 @@ def message_kinds(protocol: str) -> tuple[type, ...]:
 def follow_action(agent: int) -> str:
     """The robot's base: ``ost_msgs/action/FollowCells``."""
     return f"agent_{agent}/follow_cells"
-
-
-def send_goal_service(agent: int) -> str:
-    """The base action's goal service (``FollowCells.Impl.SendGoalService``): the one part of the
-    action a robot uses — it reads what became of its goals from its base's events."""
-    return f"{follow_action(agent)}/_action/send_goal"
 
 
 def base_topic(agent: int) -> str:

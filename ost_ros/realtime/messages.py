@@ -185,3 +185,21 @@ class BaseClock:
     TYPE: ClassVar[str] = "base_clock"
     t: float
     events: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class BaseGoal:
+    """Robot ``agent``'s goal ``id`` for its own base (over DDS on ``base_goals``, as nav2 takes a
+    goal on ``goal_pose`` beside its action): ``kind`` follow (``path``), stand or carry
+    (``object`` with ``group``), taking over at the base's first cell boundary at or after ``at``;
+    ``state`` labels what the robot does meanwhile. What became of it, its base's events say."""
+
+    TYPE: ClassVar[str] = "base_goal"
+    agent: int
+    id: int
+    kind: str
+    at: float
+    path: tuple[Cell, ...] = ()
+    object: int = -1
+    group: tuple[int, ...] = ()
+    state: str = ""

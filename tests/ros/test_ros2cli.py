@@ -287,8 +287,9 @@ def test_ros2_action_against_a_realtime_base(tmp_path, procs, domain):
     assert f"{name} [ost_msgs/action/FollowCells]" in out and "/ost/agent_0/follow_cells" in out
     info = ros2(domain, "action", "info", name, "-t")
     assert info.returncode == 0 and "Action servers: 1" in info.stdout, info.stdout + info.stderr
-    # (ros2action 0.32.2 prints the server's namespace mangled, "//o/s/tworld": its own join)
-    assert "world [ost_msgs/action/FollowCells]" in info.stdout
+    # (ros2action 0.32.2 prints the server's namespace mangled, "//o/s/tbases": its own join;
+    # the bases are served by the world process's node "bases")
+    assert "bases [ost_msgs/action/FollowCells]" in info.stdout
     sent = ros2(domain, "action", "send_goal", name, "ost_msgs/action/FollowCells",
                 "{kind: 1, id: 7, state: WAITING}", timeout=90)  # fmt: skip
     assert sent.returncode == 0, sent.stderr
