@@ -118,7 +118,7 @@ class RealtimeAgentNode(Node):
 
         self.kind_pubs: dict[type, Any] = {}
         self.kind_subs = []
-        for kind in rtp.message_kinds(self.p["protocol"]):
+        for kind in rtp.message_kinds(self.p["protocol"], self.p["coordination"]):
             topic = tp.message_topic(kind)
             self.kind_pubs[kind] = self.create_publisher(
                 wire.ros_type(kind), topic, q, event_callbacks=tp.no_events_pub()
@@ -139,7 +139,7 @@ class RealtimeAgentNode(Node):
             wire.ros_type(Digest), rtp.DIGESTS, q, event_callbacks=tp.no_events_pub()
         )
         self.sub_clock = tp.subscribe(
-            self, BaseClock, rtp.BASE_CLOCK, self.on_base_clock, tp.LOCKSTEP_QOS, g, th, skip=other_run
+            self, BaseClock, rtp.BASE_CLOCK, self.on_base_clock, tp.LATEST_QOS, g, th, skip=other_run
         )
         self.sub_base = tp.subscribe(
             self, BaseEvent, rtp.base_topic(me), self.on_base, q, g, th, skip=other_run

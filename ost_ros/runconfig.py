@@ -150,7 +150,7 @@ def _settings() -> tuple[Setting, ...]:
         S("area_fraction", 0.0, "coordination trigger: per fraction f of the area searched (0: off)",
           "protocol", A, 0.0, 1.0, metavar="F"),
         S("coordination", "distributed", "who coordinates: every robot, or the lowest id alone",
-          "protocol", A, choices=ORGANISATIONS),
+          "protocol", WA, choices=ORGANISATIONS),
         *_protocol_settings(),
         S("event_skipping", True, "execute the agents' plans for quiet steps without a round trip",
           "protocol", W, flag="--no-skip"),

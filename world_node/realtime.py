@@ -84,6 +84,7 @@ from ost_ros.scenario import ScenarioError
 
 PROGRESS_S = 0.25  # the progress file, at most this often (wall)
 POSE_HZ = 10.0  # poses of robots that moved, and the rosgraph clock (wall)
+IDLE_HZ = 2.0  # the bases' clock and the rosgraph clock while nothing happens (wall)
 START_S = 0.05  # how often it looks whether the team is ready, before the run
 DEBUG = bool(os.environ.get("OST_RT_DEBUG"))
 RESULT_KEPT_S = 10  # an ended goal's result, kept for its client (s)
@@ -240,6 +241,8 @@ class RealtimeWorldNode(Node):
         self.digests: dict[int, dict[int, tuple[str, str]]] = {}  # stamp -> agent -> digest
         self.events = dict.fromkeys(self.ids, 0)  # base events sent to each robot
         self.sent_events = False  # since the last base clock
+        self.active = False  # something happened since the last tick (events, goals, messages)
+        self.last_base_clock = 0.0
         self.posed: dict[int, tuple[int, int]] = {}  # the cell each robot's last pose showed
         self.goals: dict[tuple[int, int], tuple[Any, Future]] = {}  # (agent, goal id) -> (handle, result)
         self.carrying: dict[int, tuple[int, Any]] = {}  # agent -> (object, goal handle) of its carry
@@ -262,8 +265,11 @@ class RealtimeWorldNode(Node):
             return m.run != self.run or m.sender not in self.live
 
         self.pub_clock = self.create_publisher(Clock, tp.CLOCK, tp.LATEST_QOS)
+        # The bases' clock: the newest is all that counts (its counts are totals), so keep-last 1
+        # — kept-all, each tick waited in the writer for 50 readers' acknowledgements (a 50-robot
+        # world spent half a core publishing it)
         self.pub_base_clock = self.create_publisher(
-            wire.ros_type(BaseClock), rtp.BASE_CLOCK, q, event_callbacks=quiet()
+            wire.ros_type(BaseClock), rtp.BASE_CLOCK, tp.LATEST_QOS, event_callbacks=quiet()
         )
         self.pub_result = self.create_publisher(String, tp.RESULT, tp.RESULT_QOS)
         self.pub_end = self.create_publisher(wire.ros_type(RunEnd), tp.RUN_END, tp.LATCHED_ALL_QOS)
@@ -275,7 +281,7 @@ class RealtimeWorldNode(Node):
         # Every robot's messages: what it said (its watermarks, its count) and, sealed, to relay.
         self.kind_pubs: dict[type, Any] = {}
         self.kind_subs = []
-        for kind in rtp.message_kinds(p["protocol"]):
+        for kind in rtp.message_kinds(p["protocol"], p["coordination"]):
             topic = tp.message_topic(kind)
             pub = self.create_publisher(wire.ros_type(kind), topic, q, event_callbacks=quiet())
             self.kind_pubs[kind] = pub
@@ -388,6 +394,7 @@ class RealtimeWorldNode(Node):
             )
             return
         with self.lock:
+            self.active = True
             self.apply(g.agent, g.id, goal, g.at)
         self.bases.wake.trigger()  # (the event timer, for the goal's events)
 
@@ -440,6 +447,7 @@ class RealtimeWorldNode(Node):
             return
         self.events[agent] += 1
         msg = pack(agent, self.events[agent], ev, sensed)
+        self.active = True
         self.guard.publish(self.pub_base[agent], msg, run=self.run, receivers=(agent,))
         self.sent_events = True
 
@@ -476,12 +484,18 @@ class RealtimeWorldNode(Node):
                 self.check_suspects(wall, now)
                 if self.world.done:
                     self.end_run(now)
-            self.publish_base_clock(now)
-        self.bases.wake.trigger()  # (the event timer, for what this tick changed)
-        if wall - self.last_clock >= 1.0 / POSE_HZ:
+            # A team that says nothing and whose bases do nothing needs the clock only now and
+            # then (its robots extrapolate it); any activity brings it back to every tick.
+            if self.active or wall - self.last_base_clock >= 1.0 / IDLE_HZ:
+                self.publish_base_clock(now)
+            soon = self.next_event_in() is not None
+        if soon:  # the event timer, for an event due before the next tick (waking the bases'
+            self.bases.wake.trigger()  # thread costs a wait set of every robot's action)
+        if wall - self.last_clock >= 1.0 / (POSE_HZ if self.active else IDLE_HZ):
             self.last_clock = wall
             with self.lock:
                 self.publish_clock(now)
+        self.active = False
         if self.result_at is not None:
             # the agents have read the result (or not, after linger): leave
             gone = all(s.get_publisher_count() <= 1 for s in self.kind_subs)  # its own relay's
@@ -516,6 +530,7 @@ class RealtimeWorldNode(Node):
 
     def publish_base_clock(self, now: float) -> None:
         self.sent_events = False
+        self.last_base_clock = time.monotonic()
         clock = BaseClock(now, tuple(self.events[i] for i in self.ids))
         self.guard.publish(self.pub_base_clock, clock, run=self.run)
 
@@ -552,12 +567,14 @@ class RealtimeWorldNode(Node):
 
     def on_sample(self, pub: Any, s: Sample, data: bytes) -> None:
         sender = s.message.sender
+        self.active = True
         if sender in self.originals:
             self.originals[sender].append((pub, data))
             self.heard[sender].message(s.seq, s.watermark)
             self.suspects.pop(sender, None)
 
     def on_mark(self, m: Mark | Need) -> None:
+        self.active = True
         if m.sender in self.heard:
             self.heard[m.sender].mark(m.watermark, m.seq)
             self.suspects.pop(m.sender, None)

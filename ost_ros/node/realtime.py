@@ -5,7 +5,7 @@ as the lockstep's (:mod:`ost_ros.node.transport`)."""
 from __future__ import annotations
 
 from ost_ros import protocols
-from ost_ros.realtime.messages import Lost, RtStatus
+from ost_ros.realtime.messages import Lost, RtStatus, ScheduleUpdate, Status
 
 MARKS = "marks"  # agents → agents (and the world): watermarks
 NEEDS = "needs"  # agents → agents: a batch waits for watermarks
@@ -17,10 +17,15 @@ BASE_GOALS = "base_goals"  # agents → world: each robot's goals for its own ba
 __all__ = ["BASE_CLOCK", "BASE_GOALS", "DIGESTS", "LOST", "MARKS", "NEEDS", "Lost", "message_kinds"]
 
 
-def message_kinds(protocol: str) -> tuple[type, ...]:
-    """The robot-to-robot message kinds of a realtime run: the protocol's, and a survivor's status
-    after a failure (the realtime comm modules say it as ``RtStatus``)."""
-    return (*protocols.get(protocol).messages, RtStatus)
+def message_kinds(protocol: str, organisation: str = "distributed") -> tuple[type, ...]:
+    """The robot-to-robot message kinds of a realtime run: the protocol's — a survivor's status
+    after a failure said as ``RtStatus`` (the lockstep's ``Status`` never goes out), a
+    coordinator's update only in the coordinator organisation — each a topic, so each a reader
+    and a writer per robot to discover (a team of 50 brings up ~2 200 endpoints)."""
+    kinds = [k for k in protocols.get(protocol).messages if k is not Status]
+    if organisation != "coordinator":
+        kinds = [k for k in kinds if k is not ScheduleUpdate]
+    return (*kinds, RtStatus)
 
 
 def follow_action(agent: int) -> str:
