@@ -169,7 +169,7 @@ def _settings() -> tuple[Setting, ...]:
           metavar="AGENT:STEP:S", parse=agent_step_steps),
         S("stalls", "", "the stalls (AGENT:STEP:S, comma-separated)", "realtime", W, option=False),
         S("noise_seed", 0, "seed of the speed noise", "realtime", W, 0, INT_MAX, metavar="S"),
-        S("clock_hz", 50.0, "how often the world publishes <ns>/clock (wall Hz)", "realtime", W, 1.0,
+        S("clock_hz", 50.0, "how often the world ticks (wall Hz): the bases' clock, at most 500 / team size", "realtime", W, 1.0,
           1000.0, metavar="HZ"),
         # ---------------------------------------------------------------- ROS
         S("namespace", "ost", "the run's namespace: two teams in two namespaces share a domain",
