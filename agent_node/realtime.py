@@ -10,8 +10,9 @@ a timer, a digest — goes out.
 **A decision is local.** Where its base will be is the robot's own picture of it
 (:class:`~ost_ros.realtime.base.BaseMirror`), kept from the events its base sends anyway (a goal
 took over, a stall, a lift, a goal's end) and from its own goals: no question to the world on a
-decision's path. Goals go out on the base's action (``ost_msgs/action/FollowCells``: only its
-``send_goal`` service is used — the acceptance is not waited for, the events say what happened).
+decision's path. Goals go out one way on ``<ns>/base_goals`` (``ost_msgs/BaseGoal``, sealed for
+the world), as nav2 takes a goal on ``goal_pose`` beside its action: the base's events say what
+became of each. Until a goal it sent has started or ended, a decision waits for that event.
 
 **Time** is the bases' clock ``<ns>/base_clock`` (sim time, steps), extrapolated between two of its
 messages at the run's ``rtf`` for the robot's own timers; it never goes back. The same message

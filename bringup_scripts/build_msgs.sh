@@ -51,6 +51,10 @@ py="$venv/bin/python3"
 
 stage_begin "building the ost_msgs interfaces (the first time one to two minutes)"
 log="$venv/build_msgs.log"; : > "$log"
+# A rebuild starts clean: an interface removed from the sources must not linger in the venv (its
+# generated code in the build tree would be installed again, its .msg listed by the ament index).
+rm -rf "$build" "$venv/share/ost_msgs/msg" "$venv/share/ost_msgs/srv" "$venv/share/ost_msgs/action" \
+  "$venv/lib/python3.12/site-packages/ost_msgs"
 mkdir -p "$build"
 run() {  # run STEP COMMAND...: the command's output to the log, shown when it fails
   local step=$1; shift

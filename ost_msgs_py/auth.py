@@ -28,7 +28,7 @@ A receiver (:class:`Checker`) accepts a message only if
   anything older, so memory stays bounded however long the run;
 
 and the node then checks that the signer is the sender the message claims (:func:`claimed_signer`):
-the world for ``Tick``/``RunEnd``/``RunInfo`` (and a realtime run's ``Detection``/``Lost``), the
+the world for ``Tick``/``RunEnd``/``RunInfo`` (and a realtime run's ``Lost``, ``BaseEvent``, ``BaseClock``), the
 agent named in it for everything else.
 
 What MACs give up against signatures: whoever holds robot A's key can make A accept a message in

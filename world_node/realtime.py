@@ -1,10 +1,12 @@
 """``world_node`` of a realtime run (``realtime:=true``; docs/realtime.md): the robots' bases in sim
 time, with no barrier. It serves :class:`~ost_ros.realtime.world.RealtimeWorld` to the agents:
 
-- per robot ``<ns>/agent_<i>/follow_cells`` (``ost_msgs/action/FollowCells``: follow a path,
-  stand, carry an object with its group; a new goal preempts the running one; feedback when a
-  carry is lifted; results) — what a robot, ``ros2 action send_goal`` or any action client drives
-  the base with;
+- the robots' goals on ``<ns>/base_goals`` (``ost_msgs/BaseGoal``: follow a path, stand, carry an
+  object with its group; a new goal preempts the running one) — one way, what a robot drives its
+  base with;
+- per robot ``<ns>/agent_<i>/follow_cells`` (``ost_msgs/action/FollowCells``, the same goals;
+  feedback when a carry is lifted; results), served by the node ``<ns>/bases`` — for ``ros2
+  action send_goal``, an operator or any action client;
 - per robot ``<ns>/agent_<i>/base`` (``ost_msgs/BaseEvent``): everything the base does, numbered
   and in order — a goal took over (from which cell and time, when its first move leaves, how long
   a move takes), a stall, a lift, a detection (objects coming into its sensor), a goal's end. The
@@ -30,8 +32,10 @@ time, with no barrier. It serves :class:`~ost_ros.realtime.world.RealtimeWorld` 
 Everything a robot reads from the world (base events, the bases' clock, notices, run_end) is
 sealed like a robot's messages (docs/ros.md); the action and the display topics are not.
 
-It runs on rclpy's EventsExecutor: a goal, a sample or a timer wakes it, nothing polls — 50
-bases standing still cost the clock's ticks.
+The world node runs on rclpy's EventsExecutor: a goal, a sample or its tick wakes it (the tick
+at ``clock_hz``, at most 500 / team size, and 2 Hz while nothing happens). The actions are on the
+node ``<ns>/bases``, spun by rclpy's SingleThreadedExecutor in a thread of its own with a timer
+for the world's next event (:class:`BasesNode`); the two share the world under one lock.
 """
 
 from __future__ import annotations
