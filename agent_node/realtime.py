@@ -329,7 +329,7 @@ class RealtimeAgentNode(Node):
             self.base_in += 1
             self.base_event(self.base_ahead.pop(self.base_in))
         self.base_known()
-        if self.ask_at is not None and self.mirror.fresh:  # the decision waiting for it
+        if self.ask_at is not None:  # the decision waiting for its picture (again, if still so)
             at, self.ask_at = self.ask_at, None
             self.decide(at)
 
@@ -342,6 +342,8 @@ class RealtimeAgentNode(Node):
         if isinstance(ev, GoalResult) and ev.outcome == "preempted" and ev.goal == self.last_goal:
             # not by itself: another client's goal (an operator's) took its base over
             ev = GoalResult(ev.agent, ev.goal, "aborted", ev.time, ev.cell, "PREEMPTED", ev.reason)
+        if DEBUG:
+            self.get_logger().info(f"base event {m.seq} {ev} at {self.now():.1f}")
         if not isinstance(ev, Detection):
             self.mirror.take(ev, m.sensed)
         if self.report_sent:
@@ -370,14 +372,18 @@ class RealtimeAgentNode(Node):
 
     def decide(self, at: float) -> None:
         """Where its base will be (its own picture of it): now, unless a goal it sent has neither
-        started nor ended yet (then once it has: its events say so)."""
-        if not self.mirror.fresh:
+        started nor ended yet, or the route running is over by now with no result yet (then once
+        its events say so)."""
+        now = self.now()
+        t = max(at, now)
+        if not self.mirror.settled(t):
             self.ask_at = at
             return
-        now = self.now()
-        self.out(self.rt.on_feedback(self.mirror.feedback(max(at, now)), now))
+        self.out(self.rt.on_feedback(self.mirror.feedback(t), now))
 
     def publish(self, payload: Envelope | Mark | Need) -> None:
+        if DEBUG and isinstance(payload, Envelope):
+            self.get_logger().info(f"publish {payload} at {self.now():.1f}")
         if isinstance(payload, Envelope):
             kind = type(payload.message)
             sample = Sample(payload.message, payload.stamp, payload.seq, self.run, payload.implied)

@@ -40,6 +40,7 @@ def cpu_s(pid: int) -> float:
 def one_run(args: argparse.Namespace, scenario: Path, env: dict[str, str]) -> dict:
     with tempfile.TemporaryDirectory(prefix="ost_bench_idle.") as tmp:
         run_dir = Path(tmp) / "run"
+        log = open(Path(tmp) / "ost_up.err", "w+")  # noqa: SIM115 (read back below)
         t0 = time.monotonic()
         up = subprocess.run(
             [
@@ -56,14 +57,16 @@ def one_run(args: argparse.Namespace, scenario: Path, env: dict[str, str]) -> di
                 *args.up_args.split(),
             ],
             env=env,
-            capture_output=True,
-            text=True,
+            # files, not pipes: the supervisor ost up leaves behind holds them for the whole run
+            stdout=subprocess.DEVNULL,
+            stderr=log,
             timeout=300,
         )
         started_s = time.monotonic() - t0
         try:
             if up.returncode != 0:
-                raise SystemExit(f"bench_idle: ost up failed:\n{up.stderr[-2000:]}")
+                log.seek(0)
+                raise SystemExit(f"bench_idle: ost up failed:\n{log.read()[-2000:]}")
             ready = float((run_dir / "ready").read_text().split()[0])
             pids = {
                 f.stem: int(f.read_text().split()[0]) for f in run_dir.glob("*.pid") if f.stem != "ost_up"
@@ -73,6 +76,7 @@ def one_run(args: argparse.Namespace, scenario: Path, env: dict[str, str]) -> di
             cores = {name: (cpu_s(pid) - before[name]) / args.seconds for name, pid in pids.items()}
         finally:
             subprocess.run([OST, "up", "--down", str(run_dir)], env=env, capture_output=True, timeout=120)
+            log.close()
     world = [c for name, c in cores.items() if not name.startswith("agent")]
     agents = sorted(c for name, c in cores.items() if name.startswith("agent"))
     return {

@@ -249,6 +249,7 @@ class RealtimeWorldNode(Node):
         self.digests: dict[int, dict[int, tuple[str, str]]] = {}  # stamp -> agent -> digest
         self.events = dict.fromkeys(self.ids, 0)  # base events sent to each robot
         self.sent_events = False  # since the last base clock
+        self.advanced = 0.0  # the sim time the world's events are out up to (the bases' clock)
         self.active = False  # something happened since the last tick (events, goals, messages)
         self.last_base_clock = 0.0
         self.posed: dict[int, tuple[int, int]] = {}  # the cell each robot's last pose showed
@@ -431,7 +432,13 @@ class RealtimeWorldNode(Node):
             why = "the robot has failed" if self.started else "the run has not started"
             self.dispatch(GoalResult(agent, gid, "refused", self.sim_now(), (0, 0), "FAILED", why))
         else:
-            for ev in self.world.goal(agent, gid, goal, max(at, self.sim_now())):
+            # Everything due before the goal first: a goal that came while an event was still
+            # unprocessed (a carry's delivery between two ticks) would otherwise preempt it — the
+            # load dropped short of its destination, and the robots, told it was delivered, went
+            # home (rtf 1000: 6 runs of 6 ended so once the event timer ran late).
+            now = self.sim_now()
+            self.advance(now)
+            for ev in self.world.goal(agent, gid, goal, max(at, now)):
                 self.dispatch(ev)
             self.after_events()
 
@@ -460,6 +467,8 @@ class RealtimeWorldNode(Node):
         self.sent_events = True
 
     def dispatch(self, ev: Any) -> None:
+        if DEBUG:
+            self.get_logger().info(f"event {ev}")
         if isinstance(ev, GoalResult):
             sensed: tuple = ()
             if ev.outcome in (REACHED, ABORTED) and ev.agent in self.live:  # it stands there, idle
@@ -485,8 +494,9 @@ class RealtimeWorldNode(Node):
             with self.lock:
                 self.try_start()
             return
-        wall, now = time.monotonic(), self.sim_now()
+        wall = time.monotonic()
         with self.lock:
+            now = self.sim_now()  # (under the lock: the bases' thread may have advanced meanwhile)
             if self.ended is None:
                 self.advance(now)
                 self.check_suspects(wall, now)
@@ -495,7 +505,7 @@ class RealtimeWorldNode(Node):
             # A team that says nothing and whose bases do nothing needs the clock only now and
             # then (its robots extrapolate it); any activity brings it back to every tick.
             if self.active or wall - self.last_base_clock >= 1.0 / IDLE_HZ:
-                self.publish_base_clock(now)
+                self.publish_base_clock(self.advanced)
             soon = self.next_event_in() is not None
         if soon:  # the event timer, for an event due before the next tick (waking the bases'
             self.bases.wake.trigger()  # thread costs a wait set of every robot's action)
@@ -519,13 +529,15 @@ class RealtimeWorldNode(Node):
         if self.ended is None:
             for ev in self.world.advance(now):
                 self.dispatch(ev)
+            self.advanced = max(self.advanced, now)
         self.after_events()
 
     def after_events(self) -> None:
         """Events out: the bases' clock at once (a robot commits as soon as it knows it has them
-        all)."""
+        all) — at the time the world has been advanced to, never later: an event due since is
+        not out yet, and a robot must not commit past it."""
         if self.sent_events:
-            self.publish_base_clock(self.sim_now())
+            self.publish_base_clock(self.advanced)
 
     def next_event_in(self) -> float | None:
         """(Under the lock) wall seconds to the world's next event, if it comes before the next

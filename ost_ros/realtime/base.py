@@ -12,7 +12,8 @@ facts with the world's own formulas (:class:`~ost_ros.realtime.world.Route`,
 So :meth:`BaseMirror.feedback` answers what ``RealtimeWorld.feedback`` would (tested on random
 runs: the same cell, time, goal, index and carry at every decision), as long as the robot has
 heard every event its base sent: :attr:`BaseMirror.fresh` is False while a goal it sent has
-neither started nor ended.
+neither started nor ended, and :meth:`BaseMirror.settled` also while a route finished by the
+decision's time has no result yet.
 """
 
 from __future__ import annotations
@@ -74,6 +75,17 @@ class BaseMirror:
     def fresh(self) -> bool:
         """Every goal sent has started or ended: the picture is the base's."""
         return not self._sent
+
+    def settled(self, at: float) -> bool:
+        """Whether the picture holds at ``at``: every goal sent has started or ended, and the goal
+        running is not over by then by its own route — a route its base has finished by ``at``
+        waits for its result, which comes after every detection on the way (decided on the
+        prediction, a sweep ended before its last finds were in, and they were dropped: the
+        objects were never carried)."""
+        if self._sent:
+            return False
+        r = self.route
+        return r is None or r.arrive(len(r.cells) - 1) > at + 1e-9
 
     def take(self, ev: Motion, sensed: tuple[ObjectInfo, ...] = ()) -> None:
         """One of its base's events (``sensed``: with a result, what it senses where it stands)."""
