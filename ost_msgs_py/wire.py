@@ -51,16 +51,27 @@ from ost_ros import protocols
 from ost_ros.lockstep import messages as _runtime
 from ost_ros.lockstep.messages import PlanColumns, PlanStep, Sample
 from ost_ros.messages import AgentLost
-from ost_ros.realtime.messages import BaseClock, BaseEvent, BaseGoal, Digest, Lost, Mark, Need, RtStatus
+from ost_ros.realtime.messages import (
+    Back,
+    BaseClock,
+    BaseEvent,
+    BaseGoal,
+    Digest,
+    Hello,
+    Lost,
+    Mark,
+    Need,
+    RtStatus,
+)
 
 # Agent-to-agent messages (every kind a registered protocol broadcasts, and a survivor's status
 # without a barrier) travel as Samples; the world's notices (AgentLost) only inside Tick/RunEnd.
-PROTOCOL_MESSAGES: tuple[type, ...] = (*protocols.messages(), RtStatus)
+PROTOCOL_MESSAGES: tuple[type, ...] = (*protocols.messages(), RtStatus, Back)
 RUNTIME_MESSAGES: tuple[type, ...] = _runtime.RUNTIME_MESSAGES
 # What realtime runs say besides (docs/realtime.md): watermarks, requests for them, the world's
 # stamped failure notices, coordination digests, a robot's detections. Each has a ``run`` field
 # on the wire that the node sets and checks (:func:`to_ros` ``run=``).
-REALTIME_MESSAGES: tuple[type, ...] = (Mark, Need, Lost, Digest, BaseEvent, BaseClock, BaseGoal)
+REALTIME_MESSAGES: tuple[type, ...] = (Mark, Need, Lost, Hello, Digest, BaseEvent, BaseClock, BaseGoal)
 _NOT_ON_WIRE = {"version"}
 _WORLD_FIELDS = {(AgentLost, "sender")}  # always WORLD: implied by the message kind
 

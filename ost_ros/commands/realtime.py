@@ -40,6 +40,28 @@ def stall(text: str) -> tuple[int, int, int]:
     return a, t, s
 
 
+def join(text: str) -> tuple[int, int]:
+    """argparse type: AGENT:STEP (robot AGENT joins at step STEP > 0)."""
+    parts = text.split(":")
+    try:
+        a, t = (int(x) for x in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected AGENT:STEP, got {text!r}") from None
+    if a < 0 or t < 1:
+        raise argparse.ArgumentTypeError(f"expected AGENT:STEP (≥ 0, ≥ 1), got {text!r}") from None
+    return a, t
+
+
+def positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid number {text!r}") from None
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
+    return value
+
+
 def jitter(text: str) -> float:
     try:
         value = float(text)
@@ -75,6 +97,30 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="AGENT:STEP:S",
         help="robot AGENT stands still for S steps from step STEP (repeatable; needs --latency)",
     )
+    g.add_argument(
+        "--silence",
+        type=stall,
+        action="append",
+        default=[],
+        metavar="AGENT:STEP:S",
+        help="robot AGENT's process stops for S steps from step STEP (its base goes on): past "
+        "--failure-timeout it is declared out, and comes back when it runs again (repeatable)",
+    )
+    g.add_argument(
+        "--join",
+        type=join,
+        action="append",
+        default=[],
+        metavar="AGENT:STEP",
+        help="robot AGENT is not there at the start and joins at step STEP (repeatable)",
+    )
+    g.add_argument(
+        "--failure-timeout",
+        type=positive,
+        default=None,
+        metavar="T",
+        help="steps of silence after which a robot is declared out (10; with --silence/--join)",
+    )
 
 
 def check(args: argparse.Namespace) -> None:
@@ -84,6 +130,9 @@ def check(args: argparse.Namespace) -> None:
             ("--latency-seed", args.latency_seed is not None),
             ("--speed-jitter", args.speed_jitter is not None),
             ("--stall", bool(args.stall)),
+            ("--silence", bool(args.silence)),
+            ("--join", bool(args.join)),
+            ("--failure-timeout", args.failure_timeout is not None),
         ):
             if given:
                 raise UsageError(f"{flag} needs --latency (the run without a barrier)")
@@ -113,9 +162,18 @@ def run(
     except ProtocolError as exc:
         raise UsageError(f"--latency: {exc}") from None
     ids = {a.id for a in scenario.agents}
-    for a, _, _ in args.stall:
-        if a not in ids:
-            raise UsageError(f"--stall: no agent {a} (team {sorted(ids)})")
+    for flag, given in (("--stall", args.stall), ("--silence", args.silence), ("--join", args.join)):
+        for a, *_ in given:
+            if a not in ids:
+                raise UsageError(f"{flag}: no agent {a} (team {sorted(ids)})")
+    joins = dict(args.join)
+    if len(joins) != len(args.join):
+        raise UsageError("--join: an agent can join only once")
+    for a in joins:
+        if a in failures:
+            raise UsageError(f"--join: agent {a} also fails (--fail)")
+    if joins and len(joins) == len(ids):
+        raise UsageError("--join: somebody must be there at the start")
     lat, jit = args.latency
     result, report = run_realtime(
         scenario,
@@ -128,6 +186,9 @@ def run(
         stalls=[(a, float(t), float(s)) for a, t, s in args.stall],
         failures=failures,
         max_steps=args.max_steps,
+        silences=[(a, float(t), float(s)) for a, t, s in args.silence],
+        joins={a: float(t) for a, t in joins.items()},
+        failure_timeout=args.failure_timeout or 10.0,
     )
     result.lower_bound = lower_bound(scenario).value
     if args.json:
@@ -141,4 +202,10 @@ def run(
             f"disagreements {report.disagreements} in {report.coordinations} coordinations, "
             f"largest lag {max(lags, default=0):g} steps"
         )
+        if args.silence or joins:
+            m = report.to_dict()["membership"]
+            print(
+                f"membership      {m['declared']} declared out (timeout {m['failure_timeout']} steps), "
+                f"{m['rejoins']} back, out at the end: {m['out_at_end'] or 'none'}"
+            )
     return 0 if result.completed and report.disagreements == 0 else 1

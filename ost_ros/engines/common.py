@@ -38,8 +38,10 @@ def choose_engine(scenario: Scenario, engine: str = "auto") -> str:
 
 def finish_result(world: World, agents: Sequence[ProtocolAgent], messages: int) -> RunResult:
     """The world's record plus what the agents know (prediction, agreement, warnings).
-    Failed agents told nothing at the end: only survivors count (as over DDS, where they report)."""
-    survivors = [ag for ag in agents if ag.id not in world.failed] or list(agents)
+    Failed agents told nothing at the end: only survivors count (as over DDS, where they report);
+    nor do robots out when the run ended (realtime: silent, their view stale)."""
+    out = getattr(world, "outs", {})
+    survivors = [ag for ag in agents if ag.id not in world.failed and ag.id not in out] or list(agents)
     known = [ag.summary() for ag in survivors]
     first = known[0]
     found: dict[int, int] = {}

@@ -40,8 +40,10 @@ from ost_ros.realtime.messages import (
     SEARCHING_STATE,
     Action,
     ActionKind,
+    Back,
     Digest,
     Envelope,
+    Hello,
     Lost,
     Mark,
     Need,
@@ -77,7 +79,7 @@ EPS = 1e-9
 class Publish:
     """Broadcast to every peer (an Envelope, a Mark or a Need)."""
 
-    payload: Envelope | Mark | Need
+    payload: Envelope | Mark | Need | Hello
 
 
 @dataclass(frozen=True)
@@ -184,10 +186,11 @@ class RealtimeAgent:
     agent: RtScheduleAgent
     team: tuple[int, ...]
     remote_base: bool = False  # its base's events cross a network (an agent node), not in process
+    monitor: bool = False  # a membership monitor takes part (ost_ros.realtime.membership)
     speaker: Speaker = field(init=False)
     batches: Batches = field(init=False)
     max_lag: float = 0.0  # the most a batch was processed after its stamp (steps)
-    sent: list[int] = field(default_factory=list)  # the stamps of the protocol messages it sent
+    sent: list[tuple[int, int]] = field(default_factory=list)  # (stamp, seq) of what it sent
     digests: dict[int, Digest] = field(default_factory=dict)  # stamp -> digest (coordinations)
     processed: set[int] = field(default_factory=set)  # stamps of every batch taken
     goal: Goal | None = None  # the goal running on its base
@@ -207,13 +210,21 @@ class RealtimeAgent:
     _commit_at: float | None = None  # a time to commit once the decision asked for is taken
     _event: int | None = None  # the comm's next event after the last batch (cached)
     _event_for: int = -2
+    # Membership: declared out (a notice of it taken), its life now, the Hello it sent (the
+    # incarnation it asked for), peers' Hellos it is to answer, how often it came back
+    out: bool = False
+    incarnation: int = 0
+    _hello: int = 0
+    _hellos: dict[int, Hello] = field(default_factory=dict)
+    _revive: bool = False
+    rejoins: int = 0
     _sign: tuple = ()
     _view: str = ""
     _out: list[Output] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.speaker = Speaker(self.agent.id)
-        self.batches = Batches(self.agent.id, self.team, self.speaker)
+        self.batches = Batches(self.agent.id, self.team, self.speaker, monitor=self.monitor)
         self._view = self._schedule_view() or ""
 
     @property
@@ -292,10 +303,17 @@ class RealtimeAgent:
         elif isinstance(payload, Lost):
             self.batches.accept_lost(payload)
             self._marks(self.speaker.want(payload.t), now)
+            if payload.agent == self.id and payload.incarnation == self.incarnation and not self.out:
+                self._declared_out(now)
+        elif isinstance(payload, Hello) and payload.incarnation > self.comm.incarnation.get(
+            payload.sender, 0
+        ):
+            self._hellos[payload.sender] = payload
+            self._sponsor(now)
         return self._flush(now)
 
     def on_result(self, res: GoalResult, now: float) -> list[Output]:
-        if res.goal != self.goal_id:
+        if res.goal != self.goal_id or self.out:
             return self._flush(now)  # an older goal's (preempted) result
         if res.outcome == REACHED:
             if self._sweep is not None and isinstance(self.goal, Follow):
@@ -312,12 +330,16 @@ class RealtimeAgent:
                 # over (an operator's goal): look again, decide again
                 self._decided = -1.0
                 self._decide_at(now, now)
+            elif res.code == "FAILED":
+                pass  # its base was stopped: it was declared out (its notice is on the way)
             elif res.outcome == REFUSED:
                 self.agent.warnings.append(f"goal refused at {res.time}: {res.reason}")
         return self._flush(now)
 
     def on_detection(self, det: Detection, now: float) -> list[Output]:
         a = self.agent
+        if self.out:
+            return self._flush(now)
         if a.state is GlobalState.SEARCHING and any(a.news(o) for o in det.objects):
             if self.remote_base or det.time < now - EPS:
                 # Its base is across a network (a node: the robot moves on while it hears of the
@@ -361,6 +383,9 @@ class RealtimeAgent:
         if abs(fb.time - self._decided) < EPS:
             return  # one decision per moment
         self._decided = fb.time
+        if self.out:
+            self._say_hello(fb)
+            return
         a = self.agent
         s = math.ceil(fb.time - EPS)
         self._sync(fb, s)
@@ -435,6 +460,8 @@ class RealtimeAgent:
         self, goal: Goal, fb: Feedback, sweep: tuple[Sequence[Cell], int] | None = None, force: bool = False
     ) -> None:
         """Send ``goal`` unless the running one already does it."""
+        if self.out:
+            return  # its base was stopped when it was declared: nothing until it is back
         g = self.goal
         running = g is not None and fb.goal == self.goal_id
         if not force and running:
@@ -446,8 +473,10 @@ class RealtimeAgent:
                     return
             elif isinstance(goal, Stand) and isinstance(g, Stand) and g.state == goal.state:
                 return
-        if isinstance(goal, Stand) and not running and _finish(goal.state) == _finish(self.label):
+        same = isinstance(goal, Stand) and not running and _finish(goal.state) == _finish(self.label)
+        if same and not self._revive:
             return  # it stands already, and nothing about it changes
+        self._revive = False
         self.goal_id += 1
         self.goal = goal
         self._sweep = sweep
@@ -471,7 +500,7 @@ class RealtimeAgent:
             a._taken -= 1  # taken up, not begun: it goes back into the pool
             if a.state is not GlobalState.SEARCHING:
                 a.state = GlobalState.DECISION
-            if isinstance(self.goal, Carry):  # let go now: the lift must not begin without it
+            if isinstance(self.goal, Carry) and not self.out:  # let go now: no lift without it
                 self.goal_id += 1
                 self.goal, self.label = Stand(GlobalState.DECISION.value), GlobalState.DECISION.value
                 self._out.append(SendGoal(self.goal_id, self.goal, now))
@@ -494,7 +523,7 @@ class RealtimeAgent:
             sw = a.sweep_task or comm._sweeps_of(self.id)[0]
             free_at, where = max(sw.finish, s + 1), sw.path[-1]
         stamp = stamp_of(fb.time, self.speaker.committed)
-        self._send(RtStatus(self.id, stamp, free_at, where, failure=len(comm.lost), keep=self._keep), fb.time)
+        self._send(RtStatus(self.id, stamp, free_at, where, failure=comm.losses, keep=self._keep), fb.time)
 
     def _resync(self) -> None:
         """A recovery completed: its own kept entries are what it has done or is doing; the
@@ -510,12 +539,80 @@ class RealtimeAgent:
             if a.state is not GlobalState.SEARCHING:
                 a.state = GlobalState.DECISION
 
+    # ------------------------------------------------------------------ membership
+
+    def _declared_out(self, now: float) -> None:
+        """Its own notice: it is out (what it sent beyond the notice counts for nobody). It sends
+        nothing more and leaves its base alone until a member's Back readmits it; it asks to come
+        back (:class:`Hello`) from where its base stands."""
+        self.out = True
+        self.goal, self._sweep, self._carry_started, self._blocked = None, None, -1, -1
+        self._decided = -1.0
+        self._decide_at(now, now)
+
+    def _say_hello(self, fb: Feedback) -> None:
+        if self._hello > self.incarnation:
+            return  # asked already
+        self._hello = self.incarnation + 1
+        self._out.append(Publish(Hello(self.id, self._hello, self.speaker.seq, fb.cell)))
+
+    def _sponsor(self, now: float) -> None:
+        """Answer the Hellos of robots its comm has taken out (their notices taken): a stamped
+        Back each (every member sends one; the first in batch order counts)."""
+        if self.out:
+            return
+        comm = self.comm
+        for j, h in list(self._hellos.items()):
+            life = comm.incarnation.get(j, 0)
+            if h.incarnation <= life:
+                del self._hellos[j]  # it is back already
+            elif j in comm.lost and h.incarnation == life + 1 and self.batches.done >= comm.lost[j]:
+                del self._hellos[j]
+                back = Back(self.id, math.ceil(now - EPS), j, h.incarnation, h.seq, h.at)
+                self._send(back, now)
+
+    def _readmit(self, t: int, msgs: Sequence, now: float) -> None:
+        """Batch t readmitted robots (their Back counted): they take part from t + 1 — this robot
+        too, if it is one of them."""
+        comm = self.comm
+        for m in msgs:
+            if isinstance(m, Back) and comm.rejoined.get(m.agent) == t and m.agent in self.batches.failed:
+                for env in self.batches.readmit(m.agent, t, m.after):
+                    self._marks(self.speaker.want(env.stamp), now)
+                if m.agent == self.id:
+                    self._come_back(t, now)
+
+    def _come_back(self, t: int, now: float) -> None:
+        """Back as its next life: nothing of its old tasks (they went to others), its search over,
+        free now where its base stands; it commits t (it sent nothing while out)."""
+        self.out = False
+        self.incarnation = self.comm.incarnation[self.id]
+        self.rejoins += 1
+        self.speaker.committed = max(self.speaker.committed, t)
+        a, k = self.agent, self.comm.knowledge
+        a.tasks.clear()
+        a.current, a.sweep_task = None, None
+        # what is left of its old life in the schedule is done or under way by others: counted as
+        # taken (its status's ``keep`` counts its entries from the first)
+        a._seen_schedule = self.comm.rejoin_len[self.id]  # (the batch may have planned for it)
+        a._taken = sum(1 for e in k.schedule[: a._seen_schedule] if self.id in e.agents)
+        a.search.state = SearchState.DONE
+        a.state = GlobalState.DECISION
+        a.reported &= set(k.objects)  # what it said while out counted for nobody: news again
+        self._status_due, self._keep = False, 0
+        self.goal, self._sweep = None, None
+        self._revive = True  # its base was stopped: its next goal, even to stand, takes it back
+        self._decided = -1.0
+        self._decide_at(now, now)
+
     # ------------------------------------------------------------------ the comm side
 
     def _send(self, message, time: float) -> None:
+        if self.out:
+            return  # it counts for nobody until it is back (its Hello said how many it sent)
         shared = _shared(message)
         env = self.speaker.send(message, time, shared)
-        self.sent.append(env.stamp)
+        self.sent.append((env.stamp, env.seq))
         self.batches.accept(env, shared)
         self._out.append(Publish(env))
         if shared:
@@ -574,6 +671,7 @@ class RealtimeAgent:
         self.processed.add(t)
         self.max_lag = max(self.max_lag, now - t)
         self.agent.communicate(t, msgs)
+        self._readmit(t, msgs, now)
         for m in self.comm.drain():
             self._send(m, now)
         view = self._schedule_view()
@@ -590,13 +688,18 @@ class RealtimeAgent:
         if comm.recovered:
             comm.recovered = False
             self._resync()
+        if self._hellos:
+            self._sponsor(now)
+        a = self.agent
+        if a.state in (GlobalState.RETURNING, GlobalState.FINISH) and a.current is None and a._unread():
+            a.state = GlobalState.DECISION  # called back: a robot came back, and with it work
         self._decide_at(math.floor(now + EPS) + 1, now)
 
     def _schedule_view(self) -> str | None:
         """The shared view (schedule and pool) if it may have changed since the last one, else
         None: it changes only with a coordination, a find, an award or a failure."""
         k, comm = self.comm.knowledge, self.comm
-        sign = (len(k.schedule), k.coordinations, len(k.unscheduled), len(comm.lost), comm.kept_len)
+        sign = (len(k.schedule), k.coordinations, len(k.unscheduled), comm.losses, comm.joins, comm.kept_len)
         if sign == self._sign:
             return None
         self._sign = sign

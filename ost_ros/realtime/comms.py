@@ -29,7 +29,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ost_ros.model import Cell, moves_between
-from ost_ros.protocols.auction.comm import AuctionComm
+from ost_ros.protocols.auction.comm import Auction, AuctionComm
 from ost_ros.protocols.ccp.comm import CcpComm, CommState
 from ost_ros.protocols.ncp.comm import NcpComm
 from ost_ros.protocols.shared.knowledge import Knowledge
@@ -37,6 +37,7 @@ from ost_ros.protocols.shared.recovery import Sweep
 from ost_ros.realtime.messages import (
     AgentMessage,
     Award,
+    Back,
     Bid,
     Lost,
     NegotiationOffer,
@@ -59,6 +60,7 @@ class RtRecovery:
     lost: dict[int, int]
     statuses: dict[int, Status]
     orphans: list[tuple[Cell, ...]]
+    impossible: set[int]
     owed: dict[int, int]
     reset: bool
     _alive: tuple[int, ...] | None
@@ -76,6 +78,12 @@ class RtRecovery:
         self._episode: list[tuple[int, int]] = []  # (stamp, agent), in the order taken in
         self._keyed: list[tuple[tuple[int, int, int], tuple[Cell, ...]]] = []
         self.recovered = False  # a recovery completed (the body resyncs its task list)
+        self.losses = 0  # notices taken in (a status answers the count; never decreases)
+        self._last_loss = -1  # the stamp of the last notice taken in
+        self.incarnation: dict[int, int] = {}  # agent -> its life now (0 unless it came back)
+        self.rejoined: dict[int, int] = {}  # agent -> the stamp of its last Back
+        self.rejoin_len: dict[int, int] = {}  # agent -> the schedule's length when it came back
+        self.joins = 0  # rejoins taken in
         super()._init_recovery()  # type: ignore[misc]
 
     # The lockstep modules read ``recovering == t`` as "statuses come in a later batch": so it
@@ -91,7 +99,13 @@ class RtRecovery:
         self._recovering = value
 
     def _statuses_in(self) -> bool:
-        return all(j in self.statuses for j in self.alive)
+        return all(j in self.statuses for j in self.alive if not self._exempt(j))
+
+    def _exempt(self, j: int) -> bool:
+        """A robot back since the recovery under way began: it has nothing of the schedule to
+        keep (what is left of its old life there is pruned or kept by the others' statuses), so
+        no status of it is due or counted."""
+        return bool(self._episode) and self.rejoined.get(j, -1) >= self._episode[0][0]
 
     def cross_check(self, msg: AgentMessage) -> None:
         """A message that joins no batch (a cross-check, :attr:`AgentMessage.SHARED`): the
@@ -110,17 +124,54 @@ class RtRecovery:
         for m in messages:
             if isinstance(m, Lost):
                 self._notice[m.agent] = m
-        cut = max(self.lost.values(), default=-1)
+            elif isinstance(m, Back):
+                self._rejoin(t, m)
+        cut = self._last_loss
         keep = [m for m in messages if not (isinstance(m, _MOOT) and m.t < cut)]
         self.moot += len(messages) - len(keep)
         return keep
+
+    def _rejoin(self, t: int, msg: Back) -> None:
+        """Robot ``msg.agent``, out, is a member again from batch t + 1 (the first Back of its
+        next life; the others are duplicates): free at t + 1 where its base stands, its search
+        over (its cells went to others when it was declared), objects that had too few robots
+        for them back in the pool if it makes enough."""
+        j = msg.agent
+        if j not in self.lost or msg.incarnation != self.incarnation.get(j, 0) + 1:
+            return
+        del self.lost[j]
+        self._alive = None
+        self.incarnation[j] = msg.incarnation
+        self.rejoined[j] = t
+        self.rejoin_len[j] = len(self.knowledge.schedule)  # what it finds planned (not its own)
+        self.joins += 1
+        k, i = self.knowledge, self.team.index(j)
+        self.owed[j] = 0
+        k.searched.add(j)
+        k.free_at[i] = k.base_at[i] = t + 1
+        k.free_loc[i] = k.base_loc[i] = msg.at
+        k.lengths[i] = min(k.lengths[i], t + 1)
+        n = len(self.alive)
+        back = {o for o in self.impossible if k.objects[o].required <= n}
+        if back:
+            self.impossible -= back
+            k.unscheduled |= back
+            self._reopened(t)
+
+    def _reopened(self, t: int) -> None:
+        """Objects that were impossible are back in the pool: a comm that had closed listens
+        again (it plans them at its next coordination point)."""
+        state = getattr(self, "state", None)
+        if state is not None and state.value == "CLOSED":
+            self.state = type(state)("LISTENING")
 
     def _status(self, msg: Status) -> None:
         if (
             isinstance(msg, RtStatus)
             and msg.sender in self.team.agent_ids
             and msg.sender not in self.lost
-            and msg.failure == len(self.lost)
+            and msg.failure == self.losses
+            and not self._exempt(msg.sender)
         ):
             self.statuses[msg.sender] = msg
 
@@ -137,6 +188,8 @@ class RtRecovery:
         notice = self._notice.get(agent)
         before, rank = list(self._episode), sum(1 for f, _ in self._episode if f == t)
         self._episode.append((t, agent))
+        self.losses += 1
+        self._last_loss = max(self._last_loss, t)
         self.lost[agent] = t
         self._alive = None
         k.searched.discard(agent)
@@ -201,8 +254,8 @@ class RtRecovery:
                     if self.owed[e.agent] == 0:
                         k.searched.add(e.agent)
                 continue
-            if all(j in self.lost for j in e.agents) and e.object in self._dead_delivered:
-                kept.add(pos)  # done by robots that have all failed since
+            if e.object in self._dead_delivered:
+                kept.add(pos)  # delivered (a notice says so): done, whoever is left of its group
                 continue
             cell = self._dead_drops.get(e.object)
             o = k.objects[e.object]
@@ -295,6 +348,13 @@ class RtCcpComm(RtRecovery, CcpComm):
         if self._recovering is not None or (self.policy.centralised and self.awaiting):
             return None  # statuses, an update: it waits for messages
         return super().next_event(t)
+
+    @property
+    def coordinator(self) -> int:
+        """The lowest-id survivor that never came back: a robot readmitted does not take the role
+        over (an update under way would then be another's), only a failure moves it."""
+        stayed = [j for j in self.alive if j not in self.rejoined]
+        return stayed[0] if stayed else self.alive[0]
 
     def _coordinate(self, t: int, final: bool = False) -> None:
         before = self.knowledge.coordinations
@@ -389,6 +449,10 @@ class RtAuctionComm(RtRecovery, AuctionComm):
 
     def _pruned(self, objects: list[int]) -> None:
         self._reauction.update(objects)
+
+    def _bidders(self, auction: Auction) -> tuple[int, ...]:
+        """Survivors that were members when it opened (a robot back since bid on nothing)."""
+        return tuple(j for j in self.alive if self.rejoined.get(j, -1) <= auction.opened)
 
     def next_event(self, t: int) -> int | None:
         if self._recovering is not None:

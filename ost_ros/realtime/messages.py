@@ -15,6 +15,7 @@ from typing import Any, ClassVar
 from ost_ros.messages import (  # the protocol schemas (one import site for the package)
     FINISH_STATE,
     SEARCHING_STATE,
+    WORLD,
     Action,
     ActionKind,
     AgentLost,
@@ -33,14 +34,17 @@ from ost_ros.protocols.ccp.messages import ScheduleUpdate
 __all__ = [
     "FINISH_STATE",
     "SEARCHING_STATE",
+    "WORLD",
     "Action",
     "ActionKind",
     "AgentLost",
     "AgentMessage",
     "Award",
+    "Back",
     "Bid",
     "Digest",
     "Envelope",
+    "Hello",
     "Lost",
     "Mark",
     "Need",
@@ -117,6 +121,37 @@ class Lost(AgentLost):
     seq: int = 0
     at: Cell = (0, 0)
     delivered: tuple[int, ...] = ()
+    incarnation: int = 0  # which of the robot's lives ends (0: the first; a rejoin is the next)
+    serial: int = 0  # the monitor's count of its notices (0: a run without a monitor)
+
+
+@dataclass(frozen=True)
+class Hello:
+    """Robot ``sender``, declared out, asks to come back as its incarnation ``incarnation``:
+    it has sent ``seq`` messages (none more until it is back), its base stands at ``at``. Not
+    in a batch: every member that hears it answers with a stamped :class:`Back`."""
+
+    TYPE: ClassVar[str] = "hello"
+    sender: int
+    incarnation: int
+    seq: int
+    at: Cell
+
+
+@dataclass(frozen=True)
+class Back(AgentMessage):
+    """A member's stamped answer to robot ``agent``'s :class:`Hello`: from the batch after this
+    one's stamp ``t`` on, ``agent`` is a member again as its incarnation ``incarnation`` —
+    free at ``t + 1`` at ``at``, its messages counting from ``after + 1``. Every member sends one;
+    the first in batch order readmits, the rest are duplicates, dropped alike by all."""
+
+    TYPE: ClassVar[str] = "back"
+    sender: int
+    t: int
+    agent: int
+    incarnation: int
+    after: int
+    at: Cell
 
 
 @dataclass(frozen=True)

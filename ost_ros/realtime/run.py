@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, cast
 
 from ost_ros.coordination import CoordinationPolicy
@@ -32,7 +32,8 @@ from ost_ros.realtime.agent import (
 )
 from ost_ros.realtime.base import BaseMirror, mirror_of
 from ost_ros.realtime.comms import RtAuctionComm, RtCcpComm, RtNcpComm
-from ost_ros.realtime.messages import Digest, Mark, Need, ObjectInfo
+from ost_ros.realtime.membership import MONITOR, Monitor
+from ost_ros.realtime.messages import Back, Digest, Envelope, Mark, Need, ObjectInfo
 from ost_ros.realtime.net import DELIVER, KILL, WAKE, WORLD, EventQueue, Latency, Network
 from ost_ros.realtime.world import CarryStarted, Detection, Feedback, GoalResult, RealtimeWorld
 from ost_ros.result import RunResult
@@ -64,17 +65,22 @@ def check_realtime(protocol: str, policy: CoordinationPolicy | None = None, sett
 
 
 def make_agents(
-    scenario: Scenario, protocol: str, policy: CoordinationPolicy, settings: Any = None
+    scenario: Scenario, protocol: str, policy: CoordinationPolicy, settings: Any = None, monitor: bool = False
 ) -> list[RealtimeAgent]:
-    """Every robot's realtime runtime, in id order."""
+    """Every robot's realtime runtime, in id order (``monitor``: a membership monitor takes part)."""
     check_realtime(protocol, policy, settings)
     check(protocol, scenario=scenario, policy=policy)
     team = TeamInfo.from_scenario(scenario)
-    return [make_agent(team, a.id, protocol, policy, settings) for a in scenario.agents]
+    return [make_agent(team, a.id, protocol, policy, settings, monitor) for a in scenario.agents]
 
 
 def make_agent(
-    team: TeamInfo, agent_id: int, protocol: str, policy: CoordinationPolicy, settings: Any = None
+    team: TeamInfo,
+    agent_id: int,
+    protocol: str,
+    policy: CoordinationPolicy,
+    settings: Any = None,
+    monitor: bool = False,
 ) -> RealtimeAgent:
     """One robot's realtime runtime (an agent node builds its own; the protocol already checked)."""
     comm: RtCcpComm | RtNcpComm | RtAuctionComm
@@ -84,7 +90,7 @@ def make_agent(
         comm = RtNcpComm(agent_id, team, policy, settings=settings or NegotiationSettings())
     else:
         comm = RtAuctionComm(agent_id, team, policy)
-    return RealtimeAgent(RtScheduleAgent(agent_id, team, comm, protocol), team.agent_ids)
+    return RealtimeAgent(RtScheduleAgent(agent_id, team, comm, protocol), team.agent_ids, monitor=monitor)
 
 
 @dataclass
@@ -103,6 +109,12 @@ class RealtimeReport:
     copies: int = 0  # copies the network delivered
     events: int = 0  # events the run processed
     mirror_errors: list[str] = field(default_factory=list)  # (run_realtime(mirrors=True))
+    silences: tuple[tuple[int, float, float], ...] = ()  # (agent, from step, steps)
+    joins: tuple[tuple[int, float], ...] = ()  # (agent, step)
+    failure_timeout: float = 0.0
+    declared: int = 0  # notices of robots that were not dead (silent too long, or not there yet)
+    rejoins: int = 0  # robots back (a Back counted)
+    out_at_end: list[int] = field(default_factory=list)  # robots out (not dead) when the run ended
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -119,6 +131,14 @@ class RealtimeReport:
                 "needs": self.needs,
                 "copies": self.copies,
                 "events": self.events,
+            },
+            "membership": {
+                "silences": [list(s) for s in self.silences],
+                "joins": [list(j) for j in self.joins],
+                "failure_timeout": _n(self.failure_timeout),
+                "declared": self.declared,
+                "rejoins": self.rejoins,
+                "out_at_end": self.out_at_end,
             },
         }
 
@@ -145,6 +165,19 @@ class _Run:
     # that late): it commits no later than now - base_lag (0: its base is its own hardware).
     base_lag: float = 0.0
     declare_after: float = 0.0  # steps from a robot's death to the world's notice of it
+    failure_timeout: float = 10.0  # steps of silence after which a live robot is declared out
+    # A silent robot (its process stopped): until when, and what came for it meanwhile (its
+    # messages, timers and base events wait, as in a stopped process's sockets)
+    frozen: dict[int, float] = field(default_factory=dict)
+    held: dict[int, list[tuple[str, Any]]] = field(default_factory=dict)
+    _monitor_wakes: set[float] = field(default_factory=set)
+    monitor: Monitor | None = None  # the membership monitor (runs with silences or joins)
+    notice_log: dict[tuple[int, int], tuple[int, int]] = field(
+        default_factory=dict
+    )  # (agent, life) -> (stamp, seq)
+    backs: dict[tuple[int, int], tuple[int, int, int]] = field(
+        default_factory=dict
+    )  # -> (stamp, sender, seq)
     _ticks: dict[int, float] = field(default_factory=dict)  # agent -> its next base clock (base_lag)
     _world_times: set[float] = field(default_factory=set)
 
@@ -183,22 +216,13 @@ class _Run:
             if agent not in self.live:
                 return
             if isinstance(o, Publish):
-                p = o.payload
-                if isinstance(p, Mark):
-                    self.report.marks += 1
-                elif isinstance(p, Need):
-                    self.report.needs += 1
-                self.net.send(now, p, [j for j in sorted(self.live) if j != agent])
+                self.publish(agent, o.payload, now)
             elif isinstance(o, SendGoal):
-                if agent in self.mirrors:
-                    self.mirrors[agent].sent(o.id, o.goal)
-                for r in self.world.goal(agent, o.id, o.goal, o.at):
-                    self.base_event(r)
-                    if isinstance(r, GoalResult):
-                        self.dispatch(r.agent, self.agents[r.agent].on_result(r, now), now)
+                self.send_goal(agent, o, now)
             elif isinstance(o, AskFeedback):
                 fb = self.world.feedback(agent, o.at)
-                self.check_mirror(agent, fb)
+                if not ra.out:
+                    self.check_mirror(agent, fb)
                 self.dispatch(agent, ra.on_feedback(fb, now), now)
             elif isinstance(o, WakeAt):
                 self.queue.push(max(o.time, now), WAKE, ("wake", agent))
@@ -209,6 +233,23 @@ class _Run:
             self._ticks[agent] = now + self.base_lag
             self.queue.push(now + self.base_lag, WAKE, ("wake", agent))
         self.schedule_world()
+
+    def publish(self, agent: int, p: Any, now: float) -> None:
+        if isinstance(p, Mark):
+            self.report.marks += 1
+        elif isinstance(p, Need):
+            self.report.needs += 1
+        elif isinstance(p, Envelope) and isinstance(p.message, Back):
+            self.back_sent(p, now)
+        self.net.send(now, p, [j for j in sorted(self.live) if j != agent] + self._monitor_ids)
+
+    def send_goal(self, agent: int, o: SendGoal, now: float) -> None:
+        if agent in self.mirrors:
+            self.mirrors[agent].sent(o.id, o.goal)
+        for r in self.world.goal(agent, o.id, o.goal, o.at, self.agents[agent].incarnation):
+            self.base_event(r)
+            if isinstance(r, GoalResult):
+                self.dispatch(r.agent, self.agents[r.agent].on_result(r, now), now)
 
     def schedule_world(self) -> None:
         t = self.world.next_time()
@@ -221,16 +262,56 @@ class _Run:
         for ev in self.world.advance(now):
             self.base_event(ev)
             if isinstance(ev, GoalResult):
-                if ev.agent in self.live:
-                    self.dispatch(ev.agent, self.agents[ev.agent].on_result(ev, now), now)
+                self.call(ev.agent, "on_result", ev, now)
             elif isinstance(ev, Detection):
-                if ev.agent in self.live:
-                    self.dispatch(ev.agent, self.agents[ev.agent].on_detection(ev, now), now)
+                self.call(ev.agent, "on_detection", ev, now)
             elif isinstance(ev, CarryStarted):
                 for j in ev.group:
-                    if j in self.live:
-                        self.dispatch(j, self.agents[j].on_carry(ev, now), now)
+                    self.call(j, "on_carry", ev, now)
         self.schedule_world()
+
+    @property
+    def _monitor_ids(self) -> list[int]:
+        return [MONITOR] if self.monitor is not None else []
+
+    def monitor_hears(self, payload: Any, now: float) -> None:
+        """The monitor hears a broadcast (or its timer fires: None): it commits what it can and
+        announces what is wanted; a Back for a dead robot has it declared again, for that life."""
+        m = self.monitor
+        assert m is not None
+        marks = m.tick(now) if payload is None else m.hear(payload, now)
+        for mark in marks:
+            self.report.marks += 1
+            self.net.send(now, mark, sorted(self.live))
+        nxt = m.next_wanted()
+        if nxt is not None and nxt > now and nxt not in self._monitor_wakes:
+            self._monitor_wakes.add(nxt)
+            self.queue.push(float(nxt), WAKE, ("wake", MONITOR))
+        back = payload.message if isinstance(payload, Envelope) else None
+        if isinstance(back, Back) and back.agent not in self.live:
+            self.declare(back.agent, now)
+
+    def call(self, agent: int, method: str, arg: Any, now: float) -> None:
+        """Robot ``agent``'s callback, now — or when it runs again, if it is silent."""
+        if agent == MONITOR and self.monitor is not None:
+            self._monitor_wakes.discard(now)
+            self.monitor_hears(arg if method == "on_message" else None, now)
+            return
+        if agent not in self.live:
+            return
+        if agent in self.frozen:
+            self.held.setdefault(agent, []).append((method, arg))
+            return
+        ra = self.agents[agent]
+        if self.base_lag:
+            ra.base_known(now - self.base_lag)
+        if method == "start":
+            out = ra.start(now)
+        elif method == "on_clock":
+            out = ra.on_clock(now)
+        else:
+            out = getattr(ra, method)(arg, now)
+        self.dispatch(agent, out, now)
 
     def loop(self, limit: float) -> tuple[str | None, float, float | None]:
         """Events in time order until the world is done at the end of a moment (as the lockstep
@@ -256,29 +337,97 @@ class _Run:
             if phase == WORLD:
                 self.world_events(t)
             elif phase == KILL:
-                (self.kill if ev[0] == "kill" else self.declare)(ev[1], t)
+                getattr(self, ev[0])(*ev[1:], t)
             elif phase == WAKE:
-                if ev[1] in self.live:
-                    ra = self.agents[ev[1]]
-                    if self.base_lag:
-                        ra.base_known(t - self.base_lag)
-                    self.dispatch(ev[1], ra.start(t) if ev[0] == "start" else ra.on_clock(t), t)
+                self.call(ev[1], "start" if ev[0] == "start" else "on_clock", None, t)
             elif phase == DELIVER:
                 receiver, payload = ev
-                if receiver in self.live:
-                    if self.base_lag:
-                        self.agents[receiver].base_known(t - self.base_lag)
+                if receiver in self.live or receiver == MONITOR:
                     self.report.copies += 1
-                    self.dispatch(receiver, self.agents[receiver].on_message(payload, t), t)
+                self.call(receiver, "on_message", payload, t)
+
+    def membership(
+        self,
+        silences: Sequence[tuple[int, float, float]],
+        joins: Mapping[int, float],
+        timeout: float,
+        failures: Mapping[int, float],
+    ) -> None:
+        """A monitor for the team, the silences and the joins (a robot that joins is out from
+        the start and heard from its step on)."""
+        self.monitor = Monitor(tuple(sorted(self.agents)))
+        self.failure_timeout = timeout
+        self.report.silences, self.report.failure_timeout = tuple(silences), timeout
+        self.report.joins = tuple(sorted(joins.items()))
+        for a, at, steps in silences:
+            if a not in self.agents:
+                raise ValueError(f"silence of agent {a}: no such agent")
+            if at < 0 or steps <= 0:
+                raise ValueError(f"silence of agent {a}: from step {at} for {steps} steps")
+            self.queue.push(at, KILL, ("freeze", a, steps))
+        for a, at in sorted(joins.items()):
+            if a not in self.agents:
+                raise ValueError(f"join of agent {a}: no such agent")
+            if at <= 0:
+                raise ValueError(f"join of agent {a} at step {at}: must be > 0")
+            if a in failures:
+                raise ValueError(f"agent {a} both joins and fails")
+            self.frozen[a] = at
+            self.queue.push(at, KILL, ("thaw", a))
+            self.out(a, 0.0)
 
     def counted(self) -> int:
-        """Protocol messages the team took in: a failed robot's count up to its notice's stamp
-        (what it sent after its last watermark is dropped by everyone, as if never sent)."""
+        """Protocol messages the team took in: those of each robot's lives — from the start to its
+        first notice (a failed robot's up to its notice's stamp: what it sent after its last
+        watermark is dropped by everyone, as if never sent), from each Back that counted (the
+        first in batch order) to the next notice."""
         n = 0
         for j, ra in self.agents.items():
-            cut = self.notices.get(j, math.inf)
-            n += sum(1 for s in ra.sent if s < cut)
+            lives = [(-1, 0)]
+            lives += [(b[0] + 1, b[2]) for _, b in sorted((k, v) for k, v in self.backs.items() if k[0] == j)]
+            spans = []
+            for k, (first, after) in enumerate(lives):
+                end, upto = self.notice_log.get((j, k), (math.inf, math.inf))
+                spans.append((first, max(end, first), after, upto))
+            n += sum(1 for s, q in ra.sent if any(f <= s < e and a < q <= u for f, e, a, u in spans))
         return n
+
+    def freeze(self, agent: int, steps: float, now: float) -> None:
+        """Robot ``agent`` falls silent for ``steps`` (its process stopped: it hears, decides and
+        sends nothing; its base goes on); past the failure timeout it is declared out."""
+        if agent not in self.live or agent in self.frozen:
+            return
+        self.frozen[agent] = now + steps
+        self.queue.push(now + steps, KILL, ("thaw", agent))
+        if steps > self.failure_timeout:
+            self.queue.push(now + self.failure_timeout, KILL, ("out", agent))
+
+    def thaw(self, agent: int, now: float) -> None:
+        """It runs again: what came for it meanwhile, in order, then on as before."""
+        if self.frozen.pop(agent, None) is None:
+            return
+        for method, arg in self.held.pop(agent, []):
+            self.call(agent, method, arg, now)
+        self.call(agent, "on_clock", None, now)
+
+    def out(self, agent: int, now: float) -> None:
+        """A live robot silent too long is declared out: its base stops (as a failed robot's)
+        and every robot, itself included, gets the stamped notice — above its last watermark and
+        above the batch it was last readmitted in. It comes back when it is heard again."""
+        if agent not in self.live:
+            return
+        ra = self.agents[agent]
+        m = self.monitor
+        if (
+            ra.out
+            or m is None
+            or agent in m.out
+            or any(d.agent == agent and d.life == m.lives.get(agent, 0) for d in m.declared)
+        ):
+            return  # out already (its next life, if it asks, is declared when it falls silent)
+        self.world.kill(agent, now, out=True)
+        self.report.declared += 1
+        self.announce(agent, now, dead=False)
 
     def kill(self, agent: int, now: float) -> None:
         """The robot is gone; the world declares it, stamped above its last watermark — at once,
@@ -292,16 +441,50 @@ class _Run:
         else:
             self.declare(agent, now)
 
-    def declare(self, agent: int, now: float) -> None:
+    def declare(self, agent: int, now: float, life: int | None = None) -> None:
         self.world.kill(agent, now)
-        sp = self.agents[agent].speaker
+        if self.monitor is not None:
+            self.announce(agent, now, dead=True)
+            return
+        ra = self.agents[agent]
+        life = ra.incarnation if life is None else life
+        if (agent, life) in self.notice_log:
+            return  # (out already: its next life, if a member readmits it, is declared then)
+        sp = ra.speaker
         stamp = max(sp.announced + 1, math.ceil(now - 1e-9))
         # declared late, its counted sensing ends where its last watermark says (it commits a
         # time only once its base's events up to it are handled): not where its base is now
         sensed = float(sp.announced) if self.declare_after else None
-        notice = self.world.notice(agent, stamp, sp.seq, sensed_until=sensed)
+        notice = replace(self.world.notice(agent, stamp, sp.seq, sensed_until=sensed), incarnation=life)
         self.notices[agent] = stamp
+        self.notice_log[(agent, life)] = (stamp, sp.seq)
         self.net.send(now, notice, sorted(self.live))
+        self.schedule_world()
+
+    def back_sent(self, env: Envelope, now: float) -> None:
+        """A member readmits a robot: the first Back in batch order will count. A dead robot
+        readmitted (it had asked before it died) is declared again, for that life."""
+        b = env.message
+        key = (b.agent, b.incarnation)
+        mine = (env.stamp, env.sender, b.after)
+        first = key not in self.backs
+        if first or mine < self.backs[key]:
+            self.backs[key] = mine
+
+    def announce(self, agent: int, now: float, dead: bool) -> None:
+        """The monitor declares ``agent`` (silent too long; ``dead``: gone for good): its notice,
+        stamped above its last watermark heard, to every robot (itself included, if it runs)."""
+        m = self.monitor
+        assert m is not None
+        d = m.declare(agent, dead=dead)
+        if d is None:
+            return
+        notice = self.world.notice(agent, d.stamp, d.seq, sensed_until=float(d.watermark))
+        notice = replace(notice, incarnation=d.life, serial=d.serial)
+        self.notices[agent] = d.stamp
+        self.notice_log[(agent, d.life)] = (d.stamp, d.seq)
+        self.net.send(now, notice, sorted(self.live))
+        self.monitor_hears(None, now)
         self.schedule_world()
 
 
@@ -320,6 +503,9 @@ def run_realtime(
     mirrors: bool = False,
     base_lag: float = 0.0,
     declare_after: float = 0.0,
+    silences: Sequence[tuple[int, float, float]] = (),
+    joins: Mapping[int, float] | None = None,
+    failure_timeout: float = 10.0,
 ) -> tuple[RunResult, RealtimeReport]:
     """One run without a barrier, in process; the result (as ``ost sim`` builds it) and what the
     realtime run adds (agreement, lags, network figures). ``failures``: agent -> the time it
@@ -327,11 +513,15 @@ def run_realtime(
     also keeps its own picture of its base from the base's events, checked against the world at
     every decision (``report.mirror_errors``); ``base_lag``: every robot knows its base's events
     only this many steps after they happen (as over DDS), so it commits no later than that;
-    ``declare_after``: a failed robot is declared this many steps after it died (as over DDS)."""
+    ``declare_after``: a failed robot is declared this many steps after it died (as over DDS);
+    ``silences``: (agent, from, steps) — the robot's process stops that long (declared out past
+    ``failure_timeout`` steps; it comes back when it runs again); ``joins``: agent -> the step it
+    joins at (out from the start, until then)."""
     policy = policy or CoordinationPolicy()
     latency = latency or Latency()
     failures = dict(failures or {})
-    agents = make_agents(scenario, protocol, policy, settings)
+    monitor = bool(silences or joins)  # (without them, as before: the world declares the dead)
+    agents = make_agents(scenario, protocol, policy, settings, monitor=monitor)
     if prepare is not None:
         prepare(agents)
     queue = EventQueue()
@@ -345,8 +535,15 @@ def run_realtime(
     )
     bound = step_limit(scenario, len(failures))
     slack = (latency.steps + latency.jitter + 2) * 4 * (len(scenario.objects) + scenario.n_agents + 4)
-    limit = max_steps if max_steps is not None else 2 * bound + slack + sum(s[2] for s in stalls)
+    joins = dict(joins or {})
+    # a robot out and back re-plans like a failure, after its silence (or its join) has passed
+    away = sum(s[2] for s in silences) + max(joins.values(), default=0) + (len(silences) + len(joins)) * slack
+    limit = max_steps if max_steps is not None else 2 * bound + slack + sum(s[2] for s in stalls) + away
     run.base_lag, run.declare_after = base_lag, declare_after
+    if failure_timeout <= 0:
+        raise ValueError(f"failure timeout {failure_timeout}: must be > 0")
+    if monitor:
+        run.membership(silences, joins, failure_timeout, failures)
     if mirrors:
         where = {o.id: o.destination for o in scenario.objects}
         team = TeamInfo.from_scenario(scenario)
@@ -364,6 +561,8 @@ def run_realtime(
         result.completed = False
         result.error = error
     run.report.lag = {ra.id: ra.max_lag for ra in agents}
+    run.report.rejoins = sum(ra.rejoins for ra in agents)
+    run.report.out_at_end = sorted(run.world.outs)
     run.report.mirror_errors = run.mirror_errors
     run.report.disagreements, run.report.coordinations = disagreements(agents)
     return result, run.report

@@ -21,13 +21,21 @@ Failures: the world's notice (:class:`~ost_ros.realtime.messages.Lost`) is stamp
 robot's last watermark + 1 — a batch no survivor can have completed without it — and carries how
 many messages of the robot count (those with seq ≤ its ``seq`` and a stamp < s). From batch s on
 the robot is no participant: every survivor drops it from the same batch, on the same fact.
+
+Rejoins: a robot declared out that is heard again is a member again from the batch after a
+member's stamped :class:`~ost_ros.realtime.messages.Back` (taken in batch s'): its next life
+(incarnation) counts its messages with seq above the Back's ``seq`` and a stamp > s'. Each life
+is a window of stamps and seqs (:class:`Life`); a message counts if it falls in one. What a robot
+sends while out is kept aside (not dropped) until its Back is taken, then counted or dropped by
+the same rule on every member.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
+from ost_ros.realtime.messages import WORLD as MONITOR
 from ost_ros.realtime.messages import Envelope, Lost, Mark, Need
 
 
@@ -143,36 +151,65 @@ class _Peer:
 
 
 @dataclass
+class Life:
+    """One incarnation of a member: its messages stamped in [``first``, ``end``) with a seq in
+    (``after``, ``upto``] count; it is a participant of the batches in [``first``, ``end``)."""
+
+    first: int
+    after: int
+    end: int = 1 << 62
+    upto: int = 1 << 62
+    notice: Lost | None = None  # the notice that ended it
+
+    def counts(self, env: Envelope) -> bool:
+        return self.first <= env.stamp < self.end and self.after < env.seq <= self.upto
+
+
+@dataclass
 class Batches:
     """One participant's incoming side: messages by stamp, until each batch is complete."""
 
     me: int
     team: tuple[int, ...]  # every participant, ascending
     speaker: Speaker  # own side: its commitment completes own batches
+    # A monitor takes part (its notices numbered): every batch waits for its watermark too
+    # (:mod:`ost_ros.realtime.membership`); without one, notices come from whoever knows a robot
+    # is dead (the in-process run's world), stamped above the robot's last watermark.
+    monitor: bool = False
     done: int = -1  # the last batch taken
-    failed: dict[int, Lost] = field(default_factory=dict)  # agent -> its notice
+    failed: dict[int, Lost] = field(default_factory=dict)  # agent out now -> the notice
+    lives: dict[int, list[Life]] = field(default_factory=dict)  # agent -> its incarnations
     _peers: dict[int, _Peer] = field(default_factory=dict)
     _pending: dict[int, dict[tuple[int, int], Envelope]] = field(default_factory=dict)  # stamp -> ...
     _notices: dict[int, list[Lost]] = field(default_factory=dict)  # stamp -> notices
+    _ends: dict[tuple[int, int], Lost] = field(default_factory=dict)  # (agent, life) not begun yet
+    _aside: dict[int, list[Envelope]] = field(default_factory=dict)  # sent while out
     _asked: set[int] = field(default_factory=set)  # stamps a Need was sent for
     _scan: tuple[int, int] = (-1, 0)  # (batch, index in team of the first not known to cover it)
 
     def __post_init__(self) -> None:
+        if self.monitor and MONITOR not in self.team:
+            self.team = (MONITOR, *self.team)
         self._peers = {p: _Peer() for p in self.team if p != self.me}
+        self.lives = {p: [Life(-1, 0)] for p in self.team}
 
     # ------------------------------------------------------------------ input
 
     def accept(self, env: Envelope, shared: bool = True) -> bool:
-        """A message (own or a peer's); False if it is a duplicate or of no use (a dead robot's
-        beyond its notice). ``shared`` False (a cross-check): its arrival and the watermark it
-        implies are noted, but it joins no batch (the caller takes it in as it comes)."""
+        """A message (own or a peer's); False if it is a duplicate or of no use (a robot's beyond
+        its notice: kept aside while it is out, in case a rejoin counts it). ``shared`` False (a
+        cross-check): its arrival and the watermark it implies are noted, but it joins no batch
+        (the caller takes it in as it comes)."""
         if env.sender != self.me:
             peer = self._peers.get(env.sender)
             if peer is None or not peer.arrived(env.seq):
                 return False
             peer.mark(env.implied, env.seq)
-        notice = self.failed.get(env.sender)
-        if notice is not None and not self._counts(env, notice):
+        lives = self.lives[env.sender]
+        ever_out = len(lives) > 1 or lives[0].notice is not None
+        if ever_out and not self.counts(env):
+            if shared and env.sender in self.failed and env.stamp > self.done:
+                self._aside.setdefault(env.sender, []).append(env)
             return False
         if not shared:
             return True
@@ -182,6 +219,10 @@ class Batches:
             )
         self._pending.setdefault(env.stamp, {})[(env.sender, env.seq)] = env
         return True
+
+    def counts(self, env: Envelope) -> bool:
+        """Whether ``env`` falls in one of its sender's lives (so far)."""
+        return any(life.counts(env) for life in self.lives.get(env.sender, ()))
 
     def seen(self, sender: int, seq: int) -> bool:
         """Whether message ``seq`` of ``sender`` has arrived (a copy again is a duplicate)."""
@@ -195,38 +236,71 @@ class Batches:
             peer.mark(mark.watermark, mark.seq)
 
     def accept_lost(self, notice: Lost) -> None:
-        """The world's notice: the robot's messages beyond it are dropped from every batch."""
-        if notice.agent in self.failed or notice.agent not in self.team:
+        """A notice: the robot's life ``notice.incarnation`` ends; its messages beyond it are
+        dropped from every batch (kept aside while it is out). A notice of a life not begun yet
+        here (its Back still in a batch to come) ends it as soon as it begins."""
+        if self.monitor and notice.serial:  # one of the monitor's notices: its count
+            self._peers[MONITOR].arrived(notice.serial)
+        lives = self.lives.get(notice.agent)
+        if lives is None or notice.agent == MONITOR or (notice.agent, notice.incarnation) in self._ends:
             return
+        if notice.incarnation >= len(lives):
+            self._ends[(notice.agent, notice.incarnation)] = notice
+            return
+        life = lives[notice.incarnation]
+        if life.notice is not None:
+            return  # a copy
         if notice.t <= self.done:
             raise LateMessage(
                 f"failure notice of agent {notice.agent} stamped {notice.t}, batch {self.done} is taken"
             )
+        life.end, life.upto, life.notice = notice.t, notice.seq, notice
         self.failed[notice.agent] = notice
         for msgs in self._pending.values():
-            for key in [
-                k for k, e in msgs.items() if e.sender == notice.agent and not self._counts(e, notice)
-            ]:
+            for key in [k for k, e in msgs.items() if e.sender == notice.agent and not life.counts(e)]:
+                if key[1] > notice.seq:
+                    self._aside.setdefault(notice.agent, []).append(msgs[key])
                 del msgs[key]
         self._notices.setdefault(notice.t, []).append(notice)
         peer = self._peers.get(notice.agent)
         if peer is not None:
             peer.mark(notice.t - 1, notice.seq)
 
-    @staticmethod
-    def _counts(env: Envelope, notice: Lost) -> bool:
-        return env.seq <= notice.seq and env.stamp < notice.t
+    def readmit(self, agent: int, t: int, seq: int) -> list[Envelope]:
+        """Batch ``t`` (just taken) readmits ``agent`` (a :class:`Back`): its next life begins at
+        stamp t + 1, counting its messages above ``seq``. Returns its messages kept aside that now
+        count (they join their batches)."""
+        if agent not in self.failed:
+            return []
+        del self.failed[agent]
+        lives = self.lives[agent]
+        life = Life(t + 1, seq)
+        lives.append(life)
+        end = self._ends.pop((agent, len(lives) - 1), None)
+        back: list[Envelope] = []
+        for env in self._aside.pop(agent, []):
+            if life.counts(env):  # (stamped above t: its sender knew of the Back)
+                self._pending.setdefault(env.stamp, {})[(env.sender, env.seq)] = env
+                back.append(env)
+        if end is not None:  # (declared while a Back was on its way: its life ends at once)
+            self.accept_lost(replace(end, t=max(end.t, t + 1)))
+        self._scan = (-1, 0)
+        return back
+
+    def member(self, agent: int, t: int) -> bool:
+        """Whether ``agent`` takes part in batch t (a life of it spans it)."""
+        return any(life.first <= t < life.end for life in self.lives[agent])
 
     # ------------------------------------------------------------------ batches
 
     def participants(self, t: int) -> list[int]:
-        """Who batch t waits for the watermark of: the team without robots failed at or before
-        it (their counted messages must still all be in: :meth:`complete`)."""
-        return [p for p in self.team if p not in self.failed or self.failed[p].t > t]
+        """Who batch t waits for the watermark of: the members whose life spans it (of the
+        others, every message that counts must still all be in: :meth:`complete`)."""
+        return [p for p in self.team if self.member(p, t)]
 
     def lacking(self, t: int) -> list[int]:
-        """Participants whose messages up to stamp t are not all known to have arrived."""
-        return [p for p in self.participants(t) if self._lacks(p, t)]
+        """Members whose messages up to stamp t are not all known to have arrived."""
+        return [p for p in self.team if self._lacks(p, t)]
 
     def complete(self, t: int) -> bool:
         if t <= self.done:
@@ -244,13 +318,16 @@ class Batches:
         return True
 
     def _lacks(self, p: int, t: int) -> bool:
-        notice = self.failed.get(p)
-        if notice is not None and notice.t <= t:  # gone: but every message of it that counts
-            return p != self.me and self._peers[p].contiguous < notice.seq  # must be in
-
+        lives = self.lives[p]
+        if len(lives) == 1 and lives[0].end > t:  # (the common case: never out)
+            return self.speaker.committed < t if p == self.me else not self._peers[p].covers(t)
         if p == self.me:
-            return self.speaker.committed < t
-        return not self._peers[p].covers(t)
+            return self.member(p, t) and self.speaker.committed < t
+        if self.member(p, t):
+            return not self._peers[p].covers(t)
+        # out at t: but every message of it that counts up to t must be in
+        upto = max((life.upto for life in lives if life.end <= t), default=0)
+        return self._peers[p].contiguous < upto
 
     def next_stamp(self) -> int | None:
         """The smallest stamp above the last batch taken that holds a message or a notice."""

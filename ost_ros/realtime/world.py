@@ -262,6 +262,8 @@ class _Bot:
     version: int = 0
     stall_until: float = 0.0
     alive: bool = True
+    out: bool = False  # stopped because it was declared out (not dead: it may come back)
+    life: int = 0  # its robot's life (incarnation) the base last took goals from
     died: float | None = None
     finished: float | None = None
     finished_total: float = 0.0
@@ -329,6 +331,8 @@ class RealtimeWorld:
         self._rng = np.random.default_rng(self.seed)
         self.failed: dict[int, int] = {}  # agent -> step it failed in (the record's)
         self._loads: dict[int, tuple[int, Cell]] = {}  # a failed robot's load: object, where it lies
+        self.outs: dict[int, int] = {}  # agent -> step it was declared out in (until it is back)
+        self.revived: list[tuple[int, float]] = []  # (agent, time) of every robot back
         self._done: bool | None = None  # cached ``done`` (None: to compute)
         self.end: float = 0.0
         for agent, at, steps in self.stalls:
@@ -366,7 +370,8 @@ class RealtimeWorld:
 
     @property
     def survivors(self) -> int:
-        return sum(b.alive for b in self.bots.values())
+        """Robots not dead (one declared out is stopped, not dead: the run waits for it)."""
+        return sum(b.alive or b.out for b in self.bots.values())
 
     @property
     def done(self) -> bool:
@@ -376,17 +381,20 @@ class RealtimeWorld:
             n = self.survivors
             self._done = all(
                 o.delivered is not None or o.spec.required > n for o in self.objects.values()
-            ) and all(b.finished is not None for b in self.bots.values() if b.alive)
+            ) and all(b.finished is not None for b in self.bots.values() if b.alive or b.out)
         return self._done
 
     # ------------------------------------------------------------------ goals
 
-    def goal(self, agent: int, gid: int, goal: Goal, at: float) -> list[GoalResult]:
+    def goal(self, agent: int, gid: int, goal: Goal, at: float, life: int = 0) -> list[GoalResult]:
         """Goal ``gid`` (the client's id) for ``agent``'s base; it takes over at the robot's first
         boundary at or after ``at``. Returns the results it causes now: its refusal, or the
         preempted goal's PREEMPTED (team mates of a carry it leaves get ABORTED when the group
-        stops)."""
+        stops). ``life``: the robot's incarnation — a base stopped when its robot was declared
+        out takes goals again from a later life only (:meth:`revive`)."""
         b = self.bots.get(agent)
+        if b is not None and b.out and life > b.life:
+            self.revive(agent, at, life)
         if b is None or not b.alive:
             return [GoalResult(agent, gid, REFUSED, at, (0, 0), "FAILED", REFUSALS["FAILED"])]
         self._done = None
@@ -450,7 +458,9 @@ class RealtimeWorld:
             or any(j not in self.bots for j in goal.group)
         ):
             return "BAD_GROUP", f"group {list(goal.group)} for object {goal.object} (n_i {o.spec.required})"
-        dead = [j for j in goal.group if not self.bots[j].alive]
+        # (a member declared out is stopped, not dead: readmitted, it comes to hold; if it dies,
+        # its notice has the group let go)
+        dead = [j for j in goal.group if not self.bots[j].alive and not self.bots[j].out]
         if dead:
             return "MEMBER_FAILED", f"agents {dead} of the group have failed"
         return None
@@ -634,17 +644,26 @@ class RealtimeWorld:
 
     # ------------------------------------------------------------------ failures and stalls
 
-    def kill(self, agent: int, t: float) -> None:
-        """Robot ``agent`` fails at time t: it stops; a lift it was part of is called off (its
-        partners' holds end ABORTED), a carry it was in drops the object where the move under way
-        ends."""
+    def kill(self, agent: int, t: float, out: bool = False) -> None:
+        """Robot ``agent`` fails at time t (``out``: is declared out — stopped as if failed, but
+        not dead: it may come back, :meth:`revive`): it stops; a lift it was part of is called
+        off (its partners' holds end ABORTED), a carry it was in drops the object where the move
+        under way ends."""
         b = self.bots.get(agent)
         if b is None or not b.alive:
+            if b is not None and b.out and not out:  # out, and now dead for good
+                b.out = False
+                self.outs.pop(agent, None)
+                self.failed[agent] = math.ceil(t - EPS)
+                self._done = None
             return
         self._done = None
         self.now = max(self.now, t)
-        b.alive, b.died = False, t
-        self.failed[agent] = math.ceil(t - EPS)
+        b.alive, b.died, b.out = False, t, out
+        if out:
+            self.outs[agent] = math.ceil(t - EPS)
+        else:
+            self.failed[agent] = math.ceil(t - EPS)
         if b.kind == "follow" and b.route is not None:
             b.route.made = b.route.reached_by(t)
         elif b.kind == "hold":
@@ -670,6 +689,23 @@ class RealtimeWorld:
             self._loads[agent] = (b.holding, self.objects[b.holding].at)
         b.version += 1
         b.kind, b.route, b.goal = "dead", None, 0
+        b.cell = self.position(agent, t)
+
+    def revive(self, agent: int, t: float, life: int) -> None:
+        """Robot ``agent``, stopped when it was declared out, is back (a member readmitted it): its
+        base takes goals again from where it stopped, holding nothing."""
+        b = self.bots.get(agent)
+        if b is None or b.alive:
+            return
+        self._done = None
+        self.now = max(self.now, t)
+        b.alive, b.time = True, max(t, b.died if b.died is not None else t)
+        b.died, b.out, b.life = None, False, life
+        b.kind, b.route, b.goal, b.holding, b.group = "", None, 0, -1, ()
+        b.version += 1
+        self.outs.pop(agent, None)
+        self._loads.pop(agent, None)
+        self.revived.append((agent, t))
 
     def notice(self, agent: int, stamp: int, seq: int, sensed_until: float | None = None) -> Lost:
         """The world's stamped notice of ``agent``'s failure: where its counted sensing ends (the

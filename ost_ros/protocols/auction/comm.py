@@ -140,11 +140,16 @@ class AuctionComm(CcpComm):
         for obj, auction in sorted(self.auctions.items()):
             if auction.auctioneer not in self.voices or auction.opened == t:
                 continue
-            if any(j not in auction.bids for j in self.alive):
+            bidders = self._bidders(auction)
+            if any(j not in auction.bids for j in bidders):
                 continue
             need = self.knowledge.objects[obj].required
-            ranked = sorted(self.alive, key=lambda j: (auction.bids[j], j))
+            ranked = sorted(bidders, key=lambda j: (auction.bids[j], j))
             self._outbox.append(Award(auction.auctioneer, t, obj, tuple(sorted(ranked[:need]))))
+
+    def _bidders(self, auction: Auction) -> tuple[int, ...]:
+        """Whose bids an auction waits for: every survivor."""
+        return self.alive
 
     def _award(self, t: int, msg: Award) -> None:
         """The award of an auction: the group joins the schedule after everything awarded before

@@ -186,7 +186,8 @@ class CcpComm(Recovery, QueuedMessages):
         # each survivor's selections as Python ints, read once (a team model speaks for all N)
         picks = dict(zip(survivors, map(tuple, result.selections.T.tolist())))
         for voice in self.voices:
-            self._outbox.append(Selection(voice, t, k.coordinations, picks[voice]))
+            if voice in picks:  # (a robot declared out follows the team's view, selecting nothing)
+                self._outbox.append(Selection(voice, t, k.coordinations, picks[voice]))
         self.state = CommState.LISTENING
 
     # ------------------------------------------------------------------ coordinator organisation

@@ -67,3 +67,34 @@ def test_a_run_with_latency_noise_stalls_and_a_failure(scenario):
 def test_bad_values_are_one_line_errors(scenario, args, message):
     r = ost("sim", scenario, *args)
     assert r.returncode == 2 and message in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_a_robot_silent_past_the_timeout_and_one_that_joins(scenario):
+    r = ost(
+        "sim", scenario, "--latency", "4:4", "--silence", "1:30:60", "--join", "3:50",
+        "--failure-timeout", 8, "--json",
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    m = d["membership"]
+    assert (m["declared"], m["rejoins"], m["out_at_end"], m["failure_timeout"]) == (2, 2, [], 8)
+    assert d["completed"] and d["disagreements"] == 0 and d["failures"] == []
+    text = ost("sim", scenario, "--latency", "4:4", "--join", "3:50")
+    assert "membership      1 declared out (timeout 10 steps), 1 back, out at the end: none" in text.stdout
+
+
+@pytest.mark.parametrize(
+    "args, why",
+    [
+        (("--silence", "1:30:60"), "--silence needs --latency"),
+        (("--latency", 1, "--join", "9:5"), "--join: no agent 9"),
+        (("--latency", 1, "--join", "1:0"), "expected AGENT:STEP (≥ 0, ≥ 1)"),
+        (("--latency", 1, "--join", "1:5", "--join", "1:9"), "--join: an agent can join only once"),
+        (("--latency", 1, "--join", "1:5", "--fail", "1:9"), "--join: agent 1 also fails"),
+        (("--latency", 1, "--failure-timeout", "-1"), "must be > 0"),
+    ],
+)
+def test_bad_membership_flags_are_one_line(scenario, args, why):
+    r = ost("sim", scenario, *args)
+    assert r.returncode == 2 and why in r.stderr and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) <= 2, r.stderr
