@@ -67,6 +67,7 @@ setup(
         "console_scripts": [
             "ost = ost_ros.cli:main",
             "world_node = world_node.world_node:main",
+            "membership_node = world_node.membership:main",
             "agent_node = agent_node.agent_node:main",
             "watch_node = world_node.watch_node:main",
         ],

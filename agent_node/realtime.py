@@ -43,7 +43,17 @@ from ost_ros.node.params import declare_agent
 from ost_ros.node.signing import node_auth
 from ost_ros.realtime.agent import AskFeedback, Output, Publish, RealtimeAgent, SendGoal, WakeAt
 from ost_ros.realtime.base import mirror_of, unpack
-from ost_ros.realtime.messages import BaseClock, BaseEvent, BaseGoal, Digest, Envelope, Lost, Mark, Need
+from ost_ros.realtime.messages import (
+    BaseClock,
+    BaseEvent,
+    BaseGoal,
+    Digest,
+    Envelope,
+    Hello,
+    Lost,
+    Mark,
+    Need,
+)
 from ost_ros.realtime.run import make_agent
 from ost_ros.realtime.stamps import LateMessage
 from ost_ros.realtime.world import Carry, CarryStarted, Detection, Follow, GoalResult
@@ -66,7 +76,10 @@ class RealtimeAgentNode(Node):
         me = p["agent_id"]
         self.me, self.ids, self.p = me, ids, p
         team = TeamInfo.from_scenario(scenario)
-        self.rt: RealtimeAgent = make_agent(team, me, p["protocol"], cfg.policy(), cfg.protocol_settings())
+        # (the world's membership monitor takes part: every batch waits for its watermark too)
+        self.rt: RealtimeAgent = make_agent(
+            team, me, p["protocol"], cfg.policy(), cfg.protocol_settings(), monitor=True
+        )
         self.rt.remote_base = True
         self.rt.base_known(-1.0)  # nothing of its base known yet: it commits nothing
         # where an object is carried to: what the robot knows of it (it carries only objects it
@@ -89,7 +102,7 @@ class RealtimeAgentNode(Node):
         self.wake_at: float | None = None
         self.report_sent = False
         self.die_at = p["die_at_step"]
-        self.early: list[Envelope | Mark | Need | Lost] = []  # what peers said before its start
+        self.early: list[Envelope | Mark | Need | Lost | Hello] = []  # said before its start
         self.created = time.monotonic()
         # The node's ROS clock is the run's sim time (use_sim_time, /clock); its timers run on the
         # steady clock, because it extrapolates sim time between base clock messages at the rtf.
@@ -134,8 +147,13 @@ class RealtimeAgentNode(Node):
         )
         self.sub_needs = tp.subscribe(self, Need, rtp.NEEDS, self.take, q, g, th, skip=not_for_me)
         self.sub_lost = tp.subscribe(
-            self, Lost, rtp.LOST, self.on_lost, tp.LATCHED_ALL_QOS, g, th, skip=other_run
+            self, Lost, rtp.LOST, self.take, tp.LATCHED_ALL_QOS, g, th, skip=other_run
         )
+        # a robot declared out asks to come back on hellos; every member answers with a Back
+        self.pub_hellos = self.create_publisher(
+            wire.ros_type(Hello), rtp.HELLOS, q, event_callbacks=tp.no_events_pub()
+        )
+        self.sub_hellos = tp.subscribe(self, Hello, rtp.HELLOS, self.take, q, g, th, skip=not_for_me)
         self.pub_digests = self.create_publisher(
             wire.ros_type(Digest), rtp.DIGESTS, q, event_callbacks=tp.no_events_pub()
         )
@@ -167,8 +185,11 @@ class RealtimeAgentNode(Node):
         for sub in self.kind_subs:
             if sub.get_publisher_count() < n + 1:
                 out.append(f"{sub.topic_name} writers")
-        if self.pub_marks.get_subscription_count() < n + 1 or self.sub_marks.get_publisher_count() < n:
+        # (the world takes part in the marks: its membership monitor's)
+        if self.pub_marks.get_subscription_count() < n + 1 or self.sub_marks.get_publisher_count() < n + 1:
             out.append("marks")
+        if self.pub_hellos.get_subscription_count() < n or self.sub_hellos.get_publisher_count() < n:
+            out.append("hellos")
         if self.pub_needs.get_subscription_count() < n or self.sub_needs.get_publisher_count() < n:
             out.append("needs")
         for what, ok in (
@@ -285,25 +306,10 @@ class RealtimeAgentNode(Node):
     def on_sample(self, s: Sample) -> None:
         self.take(Envelope(s.message.sender, s.seq, s.step, s.message, s.watermark))
 
-    def on_lost(self, m: Lost) -> None:
-        if m.agent == self.me:
-            self.declared_failed(m)
-        else:
-            self.take(m)
-
-    def declared_failed(self, notice: Lost) -> None:
-        """The world has declared this robot failed (its liveliness lapsed: a lossy link, a stall
-        longer than the lease) and stopped its base; the team has re-planned without it from
-        batch ``notice.t`` on. It cannot take part again: it leaves (exit code 1)."""
-        if self.done:
-            return
-        self.get_logger().error(
-            f"declared failed by the world at sim time {notice.t} (no liveliness for 2 x "
-            f"{self.p['failure_timeout']:g} s; a longer --failure-timeout suits a lossy link): leaving"
-        )
-        self.exit_code, self.done = 1, True
-
-    def take(self, payload: Envelope | Mark | Need | Lost) -> None:
+    def take(self, payload: Envelope | Mark | Need | Lost | Hello) -> None:
+        """What peers (and the monitor) say, as it comes — its own notice too: declared out (a
+        lossy link, a stall longer than the lease), it stops, asks to come back and is readmitted
+        by the team as its next life (docs/realtime.md, "Who is in the team")."""
         if not self.started:
             # a peer that heard the first clock sooner has started and spoken: kept for the start
             # (dropped, its message or watermark was lost for good and batch 1 with it)
@@ -376,12 +382,12 @@ class RealtimeAgentNode(Node):
         its events say so)."""
         now = self.now()
         t = max(at, now)
-        if not self.mirror.settled(t):
+        if not self.mirror.settled(t) and not self.rt.out:  # (out: its base is stopped)
             self.ask_at = at
             return
         self.out(self.rt.on_feedback(self.mirror.feedback(t), now))
 
-    def publish(self, payload: Envelope | Mark | Need) -> None:
+    def publish(self, payload: Envelope | Mark | Need | Hello) -> None:
         if DEBUG and isinstance(payload, Envelope):
             self.get_logger().info(f"publish {payload} at {self.now():.1f}")
         if isinstance(payload, Envelope):
@@ -392,6 +398,11 @@ class RealtimeAgentNode(Node):
         elif isinstance(payload, Mark):
             self.guard.publish(self.pub_marks, payload, run=self.run)
             self.said["marks"] += 1
+        elif isinstance(payload, Hello):
+            self.get_logger().warning(
+                f"declared out by the team's monitor: asking to come back (life {payload.incarnation})"
+            )
+            self.guard.publish(self.pub_hellos, payload, run=self.run)
         else:
             self.guard.publish(self.pub_needs, payload, run=self.run)
             self.said["needs"] += 1
@@ -401,14 +412,15 @@ class RealtimeAgentNode(Node):
         self.last_goal = o.id
         self.mirror.sent(o.id, o.goal)
         g = o.goal
+        life = self.rt.incarnation
         if isinstance(g, Follow):
-            goal = BaseGoal(self.me, o.id, "follow", float(o.at), g.path, state=g.state)
+            goal = BaseGoal(self.me, o.id, "follow", float(o.at), g.path, state=g.state, life=life)
         elif isinstance(g, Carry):
             goal = BaseGoal(
-                self.me, o.id, "carry", float(o.at), object=g.object, group=g.group, state=g.state
+                self.me, o.id, "carry", float(o.at), object=g.object, group=g.group, state=g.state, life=life
             )
         else:
-            goal = BaseGoal(self.me, o.id, "stand", float(o.at), state=g.state)
+            goal = BaseGoal(self.me, o.id, "stand", float(o.at), state=g.state, life=life)
         self.guard.publish(self.pub_goals, goal, run=self.run, receivers=(WORLD,))
         if DEBUG:
             self.get_logger().info(f"sent goal {o.id} {goal.kind} at {self.now():.1f}")

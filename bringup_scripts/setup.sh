@@ -64,7 +64,7 @@ ament_register() {
   mkdir -p "$venv/share/ost_ros/launch"
   find "$venv/share/ost_ros/launch" -maxdepth 1 -type l -delete
   for f in "$repo"/launch/*.launch.py; do ln -sfn "$f" "$venv/share/ost_ros/launch/"; done
-  for exe in world_node agent_node watch_node; do ln -sfn "$venv/bin/$exe" "$venv/lib/ost_ros/$exe"; done
+  for exe in world_node agent_node watch_node membership_node; do ln -sfn "$venv/bin/$exe" "$venv/lib/ost_ros/$exe"; done
 }
 
 # Bytecode of the packages (only what is stale): with PYTHONDONTWRITEBYTECODE set, as on our CI

@@ -61,13 +61,15 @@ from ost_msgs_py.errors import InterfaceError
 from ost_ros.yamlload import safe_load
 
 WORLD = -1  # the world's signer id
+MEMBERSHIP = -2  # the membership monitor's (realtime runs: its notices and watermarks)
 TEAM_FILE = "team.yaml"
 WINDOW = 1 << 16  # counters of each signer remembered by a receiver
 TAG = 16  # bytes of one receiver's tag
 # Interfaces only the world sends; every other one names its agent (see claimed_signer).
 WORLD_TYPES = frozenset(
-    {"Tick", "RunEnd", "RunInfo", "Lost", "BaseEvent", "BaseClock"}
+    {"Tick", "RunEnd", "RunInfo", "BaseEvent", "BaseClock", "BaseStopped"}
 )  # (realtime: the last three)
+MEMBERSHIP_TYPES = frozenset({"Lost", "StopBase"})  # the membership monitor's own interfaces
 DOMAIN = b"ost-mac-1\0"  # what the digest of a message starts with: no other use of it can collide
 _KDF_PERSON = b"ost-pair-key-1"  # BLAKE2b personalisation of the pairwise key derivation
 _PAIR = struct.Struct("<ii")
@@ -86,12 +88,12 @@ class AuthError(InterfaceError):
 
 
 def key_name(signer: int) -> str:
-    """``world`` or ``agent_<i>``: the stem of the signer's key file."""
-    return "world" if signer == WORLD else f"agent_{signer}"
+    """``world``, ``membership`` or ``agent_<i>``: the stem of the signer's key file."""
+    return {WORLD: "world", MEMBERSHIP: "membership"}.get(signer, f"agent_{signer}")
 
 
 def signer_name(signer: int) -> str:
-    return "the world" if signer == WORLD else f"agent {signer}"
+    return {WORLD: "the world", MEMBERSHIP: "the membership monitor"}.get(signer, f"agent {signer}")
 
 
 # ----------------------------------------------------------------------------- key material
@@ -121,7 +123,7 @@ def make_keys(directory: str | Path, ids: Iterable[int], run: str | None = None)
     d.mkdir(mode=0o700, parents=True, exist_ok=True)
     run = run or secrets.token_hex(6)
     public: dict[int, X25519PublicKey] = {}
-    for signer in (WORLD, *sorted(set(ids))):
+    for signer in (WORLD, MEMBERSHIP, *sorted(set(ids))):
         key = X25519PrivateKey.generate()
         pem = key.private_bytes(
             serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption()
@@ -135,7 +137,8 @@ def make_keys(directory: str | Path, ids: Iterable[int], run: str | None = None)
     doc = {
         "run": run,
         "world": _public_hex(public[WORLD]),
-        "agents": {i: _public_hex(k) for i, k in public.items() if i != WORLD},
+        "membership": _public_hex(public[MEMBERSHIP]),
+        "agents": {i: _public_hex(k) for i, k in public.items() if i >= 0},
     }
     text = "# The run's public keys (X25519, raw hex) and its id: every process of the run reads this.\n"
     (d / TEAM_FILE).write_text(text + yaml.safe_dump(doc, sort_keys=False))
@@ -161,6 +164,8 @@ def load_team(directory: str | Path) -> Team:
     if not isinstance(doc, dict) or not isinstance(doc.get("agents"), dict) or not doc.get("run"):
         raise AuthError(f"{path}: expected run, world and agents (ost keys make)")
     keys = {WORLD: _public_key(doc.get("world"), f"{path}: world")}
+    if doc.get("membership") is not None:  # (keys made before the membership monitor have none)
+        keys[MEMBERSHIP] = _public_key(doc["membership"], f"{path}: membership")
     for i, text in doc["agents"].items():
         if not isinstance(i, int) or i < 0:
             raise AuthError(f"{path}: agents: {i!r} is not an agent id")
@@ -371,6 +376,8 @@ def claimed_signer(msg: Any) -> int | None:
     name = type(msg).__name__
     if name in WORLD_TYPES:
         return WORLD
+    if name in MEMBERSHIP_TYPES:
+        return MEMBERSHIP
     for field in ("sender", "agent"):
         v = getattr(msg, field, None)
         if isinstance(v, int):

@@ -56,12 +56,14 @@ from ost_ros.realtime.messages import (
     BaseClock,
     BaseEvent,
     BaseGoal,
+    BaseStopped,
     Digest,
     Hello,
     Lost,
     Mark,
     Need,
     RtStatus,
+    StopBase,
 )
 
 # Agent-to-agent messages (every kind a registered protocol broadcasts, and a survivor's status
@@ -71,7 +73,18 @@ RUNTIME_MESSAGES: tuple[type, ...] = _runtime.RUNTIME_MESSAGES
 # What realtime runs say besides (docs/realtime.md): watermarks, requests for them, the world's
 # stamped failure notices, coordination digests, a robot's detections. Each has a ``run`` field
 # on the wire that the node sets and checks (:func:`to_ros` ``run=``).
-REALTIME_MESSAGES: tuple[type, ...] = (Mark, Need, Lost, Hello, Digest, BaseEvent, BaseClock, BaseGoal)
+REALTIME_MESSAGES: tuple[type, ...] = (
+    Mark,
+    Need,
+    Lost,
+    Hello,
+    Digest,
+    BaseEvent,
+    BaseClock,
+    BaseGoal,
+    StopBase,
+    BaseStopped,
+)
 _NOT_ON_WIRE = {"version"}
 _WORLD_FIELDS = {(AgentLost, "sender")}  # always WORLD: implied by the message kind
 

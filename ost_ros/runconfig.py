@@ -184,6 +184,9 @@ def _settings() -> tuple[Setting, ...]:
           WA, metavar="DIR"),
         S("failure_timeout", FAILURE_TIMEOUT_S, "liveliness lease (s): a silent agent fails after "
           "about 2 x this (0: off)", "ROS", WA, 0.0, 3600.0, metavar="SEC"),
+        S("membership", "world", "realtime runs: who declares a silent robot out — world (the "
+          "membership role in the world's process) or node (a membership_node of its own; the "
+          "world has no membership role)", "ROS", W, choices=("world", "node"), option=False),
         S("rediscover_s", REDISCOVER_S, "create anew the endpoints whose matching has not moved for "
           "this long at start (s)", "ROS", WA, 0.1, 3600.0, option=False),
         S("observers", 0, "readers beside the team (a recorder, a live view) the start waits for",

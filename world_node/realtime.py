@@ -46,7 +46,6 @@ import math
 import os
 import threading
 import time
-from dataclasses import dataclass, field
 from typing import Any
 
 import rclpy
@@ -54,7 +53,6 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
 from ost_msgs.action import FollowCells
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
-from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.task import Future
@@ -63,7 +61,7 @@ from std_msgs.msg import String
 
 from ost_msgs_py import auth, wire
 from ost_ros.bounds import lower_bound
-from ost_ros.lockstep.messages import AgentReport, Ready, RunEnd, Sample
+from ost_ros.lockstep.messages import AgentReport, Ready, RunEnd
 from ost_ros.lockstep.world import result_from_reports
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
@@ -71,7 +69,7 @@ from ost_ros.node.params import ParameterError, declare_role, node_scenario
 from ost_ros.node.run import process_age, write_file
 from ost_ros.node.signing import node_auth
 from ost_ros.realtime.base import pack
-from ost_ros.realtime.messages import BaseClock, BaseEvent, BaseGoal, Digest, Mark, Need
+from ost_ros.realtime.messages import BaseClock, BaseEvent, BaseGoal, BaseStopped, Digest, StopBase
 from ost_ros.realtime.world import (
     ABORTED,
     REACHED,
@@ -85,6 +83,7 @@ from ost_ros.realtime.world import (
 )
 from ost_ros.runconfig import WORLD, ConfigError, RunConfig
 from ost_ros.scenario import ScenarioError
+from world_node.membership import Membership
 
 PROGRESS_S = 0.25  # the progress file, at most this often (wall)
 POSE_HZ = 10.0  # poses of robots that moved, and the rosgraph clock (wall)
@@ -175,34 +174,6 @@ class BasesNode(Node):
         self.arm()
 
 
-@dataclass
-class Heard:
-    """What the world heard of one robot's messages: which arrived (its originals, to relay) and
-    the watermarks they and its marks carried — what its failure notice is made of."""
-
-    contiguous: int = 0  # every message 1..contiguous is here
-    ahead: set[int] = field(default_factory=set)
-    marks: list[tuple[int, int]] = field(default_factory=list)  # (watermark, seq) heard
-    highest: int = -1  # the highest watermark it announced (to anyone the world heard)
-
-    def message(self, seq: int, watermark: int) -> None:
-        if seq > self.contiguous:
-            self.ahead.add(seq)
-            while self.contiguous + 1 in self.ahead:
-                self.contiguous += 1
-                self.ahead.discard(self.contiguous)
-        self.mark(watermark, seq)
-
-    def mark(self, watermark: int, seq: int) -> None:
-        self.highest = max(self.highest, watermark)
-        self.marks.append((watermark, seq))
-
-    def sensed_until(self) -> int:
-        """The last watermark among the messages counted (1..contiguous): every base event up to
-        it was handled, so what it sensed up to there it reported (in those messages)."""
-        return max((w for w, s in self.marks if s <= self.contiguous), default=-1)
-
-
 class RealtimeWorldNode(Node):
     """``<ns>/world`` of a realtime run (see the module docstring)."""
 
@@ -213,7 +184,7 @@ class RealtimeWorldNode(Node):
         try:
             stalls = RunConfig.of(p).stalls()
             self.world = RealtimeWorld(
-                scenario, p["speed_jitter"], p["noise_seed"], tuple(stalls), tracking=True
+                scenario, p["speed_jitter"], p["noise_seed"], tuple(stalls), tracking=True, wait_for_out=False
             )
         except ScenarioError as exc:
             raise ParameterError(f"scenario: {exc}") from None
@@ -221,6 +192,8 @@ class RealtimeWorldNode(Node):
             raise ParameterError(f"stalls: {exc}") from None
         self.scenario, self.p = scenario, p
         self.ids = tuple(a.id for a in scenario.agents)
+        self.declared = self.rejoins = 0
+        self.membership_log: list[tuple[str, int, float]] = []  # (out/back, agent, sim time)
         self.fingerprint = tp.scenario_fingerprint(scenario)
         self.guard = node_auth(p["keys"], p["insecure"], auth.WORLD)
         # The run id comes with the keys (every process knows it); an insecure run has none.
@@ -241,16 +214,13 @@ class RealtimeWorldNode(Node):
         self.bring_up_s: float | None = None
         self.created = time.monotonic()
         self.last_clock = self.progress_at = -1.0
-        self.live = set(self.ids)
-        self.suspects: dict[int, float] = {}
-        self.alive_seen: set[int] = set()
-        self.heard: dict[int, Heard] = {i: Heard() for i in self.ids}
-        self.originals: dict[int, list[tuple[Any, bytes]]] = {i: [] for i in self.ids}
+        self.live = set(self.ids)  # robots not out (a robot back is in again)
         self.digests: dict[int, dict[int, tuple[str, str]]] = {}  # stamp -> agent -> digest
         self.events = dict.fromkeys(self.ids, 0)  # base events sent to each robot
         self.sent_events = False  # since the last base clock
         self.advanced = 0.0  # the sim time the world's events are out up to (the bases' clock)
         self.active = False  # something happened since the last tick (events, goals, messages)
+        self.always_active = p["membership"] != "world"  # (it hears no robot talk: full rate)
         self.last_base_clock = 0.0
         self.posed: dict[int, tuple[int, int]] = {}  # the cell each robot's last pose showed
         self.goals: dict[tuple[int, int], tuple[Any, Future]] = {}  # (agent, goal id) -> (handle, result)
@@ -270,9 +240,6 @@ class RealtimeWorldNode(Node):
         def other_run(m) -> bool:
             return m.run != self.run
 
-        def dead(m) -> bool:  # (a failed robot's: the world's own copies of its messages)
-            return m.run != self.run or m.sender not in self.live
-
         self.pub_clock = self.create_publisher(Clock, tp.CLOCK, tp.LATEST_QOS)
         # The bases' clock: the newest is all that counts (its counts are totals), so keep-last 1
         # — kept-all, each tick waited in the writer for 50 readers' acknowledgements (a 50-robot
@@ -282,22 +249,10 @@ class RealtimeWorldNode(Node):
         )
         self.pub_result = self.create_publisher(String, tp.RESULT, tp.RESULT_QOS)
         self.pub_end = self.create_publisher(wire.ros_type(RunEnd), tp.RUN_END, tp.LATCHED_ALL_QOS)
-        self.pub_lost = self.create_publisher(wire.ros_type(rtp.Lost), rtp.LOST, tp.LATCHED_ALL_QOS)
         self.sub_ready = tp.subscribe(self, Ready, tp.READY, self.on_ready, tp.LATCHED_ALL_QOS, g, th)
         self.sub_report = tp.subscribe(
             self, AgentReport, tp.REPORTS, self.on_report, tp.LATCHED_ALL_QOS, g, th
         )
-        # Every robot's messages: what it said (its watermarks, its count) and, sealed, to relay.
-        self.kind_pubs: dict[type, Any] = {}
-        self.kind_subs = []
-        for kind in rtp.message_kinds(p["protocol"], p["coordination"]):
-            topic = tp.message_topic(kind)
-            pub = self.create_publisher(wire.ros_type(kind), topic, q, event_callbacks=quiet())
-            self.kind_pubs[kind] = pub
-            on = functools.partial(self.on_sample, pub)
-            self.kind_subs.append(tp.subscribe(self, kind, topic, on, q, g, th, keep_bytes=True, skip=dead))
-        self.sub_marks = tp.subscribe(self, Mark, rtp.MARKS, self.on_mark, q, g, th, skip=other_run)
-        self.sub_needs = tp.subscribe(self, Need, rtp.NEEDS, self.on_mark, q, g, th, skip=other_run)
         self.sub_digests = tp.subscribe(self, Digest, rtp.DIGESTS, self.on_digest, q, g, th, skip=other_run)
         self.sub_goals = tp.subscribe(self, BaseGoal, rtp.BASE_GOALS, self.on_goal, q, g, th, skip=other_run)
         self.pub_base, self.pub_pose = {}, {}
@@ -308,21 +263,19 @@ class RealtimeWorldNode(Node):
                 wire.ros_type(BaseEvent), rtp.base_topic(i), q, event_callbacks=quiet()
             )
             self.pub_pose[i] = self.create_publisher(PoseStamped, rtp.pose_topic(i), tp.LATEST_QOS)
-        # Liveliness: a killed agent process is a failed robot (as in lockstep).
+        # Who is in the team (world_node.membership): the role in this process, or a
+        # membership_node's (membership:=node), which asks this node to stop a robot's base.
         self.failure_timeout = p["failure_timeout"]
-        self.sub_alive = {}
-        if self.failure_timeout > 0:
-            for i in self.ids:
-                events = SubscriptionEventCallbacks(
-                    liveliness=functools.partial(self.on_liveliness, i), use_default_callbacks=False
-                )
-                self.sub_alive[i] = self.create_subscription(
-                    String,
-                    tp.alive_topic(i),
-                    functools.partial(self.on_alive_sample, i),
-                    tp.alive_qos(self.failure_timeout),
-                    event_callbacks=events,
-                )
+        self.membership: Membership | None = None
+        if p["membership"] == "world":
+            self.membership = Membership(
+                self, self.ids, p, self.stop_base, self.sim_now, self.on_out, self.heard_talk
+            )
+        else:
+            self.pub_stopped = self.create_publisher(wire.ros_type(BaseStopped), rtp.STOPPED_BASES, q)
+            self.sub_stop = tp.subscribe(
+                self, StopBase, rtp.STOP_BASES, self.on_stop_base, q, g, th, skip=other_run
+            )
 
     # ------------------------------------------------------------------ time
 
@@ -353,17 +306,13 @@ class RealtimeWorldNode(Node):
         out = [f"ready from agents {[i for i in self.ids if i not in self.ready][:8]}"]
         if len(self.ready) == n:
             out = []
-        writers = min((s.get_publisher_count() for s in self.kind_subs), default=n)
-        if writers < n or self.sub_marks.get_publisher_count() < n:
-            out.append(f"message writers {writers}/{n}")
-        unseen = sorted(set(self.ids) - self.alive_seen) if self.sub_alive else []
-        if unseen:
-            out.append(f"liveliness from {unseen[:8]}")
+        if self.membership is not None:
+            out += self.membership.lacking()
+        elif self.sub_stop.get_publisher_count() < 1 or self.pub_stopped.get_subscription_count() < 1:
+            out.append("the membership node")
         bases = [i for i in self.ids if self.pub_base[i].get_subscription_count() < 1]
         if bases or self.pub_base_clock.get_subscription_count() < n:
             out.append(f"base readers of {bases[:8]}")
-        if self.pub_lost.get_subscription_count() < n:
-            out.append("lost readers")
         return out
 
     def try_start(self) -> None:
@@ -404,7 +353,7 @@ class RealtimeWorldNode(Node):
             return
         with self.lock:
             self.active = True
-            self.apply(g.agent, g.id, goal, g.at)
+            self.apply(g.agent, g.id, goal, g.at, g.life)
         self.bases.wake.trigger()  # (the event timer, for the goal's events)
 
     def execute(self, agent: int, handle: Any, fut: Future) -> None:
@@ -422,8 +371,15 @@ class RealtimeWorldNode(Node):
         self.goals[(agent, req.id)] = (handle, fut)
         self.apply(agent, int(req.id), goal, float(req.at))
 
-    def apply(self, agent: int, gid: int, goal: Follow | Stand | Carry, at: float) -> None:
-        """(Under the lock) goal ``gid`` for ``agent``'s base, handed to the world now."""
+    def apply(self, agent: int, gid: int, goal: Follow | Stand | Carry, at: float, life: int = 0) -> None:
+        """(Under the lock) goal ``gid`` for ``agent``'s base, handed to the world now (``life``:
+        its robot's; a base stopped when its robot was declared out takes a later life back)."""
+        b = self.world.bots.get(agent)
+        if b is not None and b.out and life > b.life and self.started and self.ended is None:
+            self.live.add(agent)  # readmitted by the team: its base is its again
+            self.rejoins += 1
+            self.membership_log.append(("back", agent, round(self.sim_now(), 3)))
+            self.get_logger().info(f"agent {agent} back (life {life}) at sim time {self.sim_now():.1f}")
         if DEBUG:
             self.get_logger().info(
                 f"goal {gid} of agent {agent} ({type(goal).__name__}) at {self.sim_now():.1f}"
@@ -438,7 +394,7 @@ class RealtimeWorldNode(Node):
             # home (rtf 1000: 6 runs of 6 ended so once the event timer ran late).
             now = self.sim_now()
             self.advance(now)
-            for ev in self.world.goal(agent, gid, goal, max(at, now)):
+            for ev in self.world.goal(agent, gid, goal, max(at, now), life):
                 self.dispatch(ev)
             self.after_events()
 
@@ -457,9 +413,8 @@ class RealtimeWorldNode(Node):
         self.bases.wake.trigger()  # (from this thread or the bases': its coroutine resumes)
 
     def emit(self, agent: int, ev: Any, sensed: tuple = ()) -> None:
-        """Robot ``agent``'s base event ``ev``, numbered, on its base topic (to it alone)."""
-        if agent not in self.live:
-            return
+        """Robot ``agent``'s base event ``ev``, numbered, on its base topic (to it alone; to a
+        robot out too: it keeps its picture of its stopped base, and asks back from there)."""
         self.events[agent] += 1
         msg = pack(agent, self.events[agent], ev, sensed)
         self.active = True
@@ -499,7 +454,8 @@ class RealtimeWorldNode(Node):
             now = self.sim_now()  # (under the lock: the bases' thread may have advanced meanwhile)
             if self.ended is None:
                 self.advance(now)
-                self.check_suspects(wall, now)
+                if self.membership is not None:
+                    self.membership.check_suspects(wall)
                 if self.world.done:
                     self.end_run(now)
             # A team that says nothing and whose bases do nothing needs the clock only now and
@@ -513,10 +469,10 @@ class RealtimeWorldNode(Node):
             self.last_clock = wall
             with self.lock:
                 self.publish_clock(now)
-        self.active = False
+        self.active = self.always_active
         if self.result_at is not None:
             # the agents have read the result (or not, after linger): leave
-            gone = all(s.get_publisher_count() <= 1 for s in self.kind_subs)  # its own relay's
+            gone = self.sub_goals.get_publisher_count() == 0
             if self.p["exit_when_done"] and (gone or wall - self.result_at > self.p["linger"]):
                 self.done = True
         elif self.ended is not None and wall - self.ended_wall > 10.0:
@@ -585,68 +541,46 @@ class RealtimeWorldNode(Node):
 
     # ------------------------------------------------------------------ what robots say
 
-    def on_sample(self, pub: Any, s: Sample, data: bytes) -> None:
-        sender = s.message.sender
-        self.active = True
-        if sender in self.originals:
-            self.originals[sender].append((pub, data))
-            self.heard[sender].message(s.seq, s.watermark)
-            self.suspects.pop(sender, None)
-
-    def on_mark(self, m: Mark | Need) -> None:
-        self.active = True
-        if m.sender in self.heard:
-            self.heard[m.sender].mark(m.watermark, m.seq)
-            self.suspects.pop(m.sender, None)
-
     def on_digest(self, d: Digest) -> None:
         self.digests.setdefault(d.stamp, {})[d.sender] = (d.input, d.output)
 
-    # ------------------------------------------------------------------ failures
+    # ------------------------------------------------------------------ membership
 
-    def on_liveliness(self, agent: int, info) -> None:
-        if info.alive_count > 0:
-            self.alive_seen.add(agent)
-            self.suspects.pop(agent, None)
-            return
-        if info.not_alive_count_change > 0 and self.started and agent in self.live and self.ended is None:
-            self.suspects.setdefault(agent, time.monotonic())
+    def stop_base(self, agent: int, now: float, until: float, life: int) -> BaseStopped:
+        """(Under the lock) robot ``agent`` is declared out (its life ``life`` ends): its base
+        stopped — a lift it was part of called off, a carry's load dropped — and what its notice
+        says of it: where it was at ``until``, its load, its deliveries."""
+        running = self.world.bots[agent].goal
+        self.world.kill(agent, now, out=True)  # its partners' goals end at the next advance
+        if running:  # its own goal ends where the base stopped (its picture of its base says so)
+            cell = self.world.bots[agent].cell
+            self.emit(agent, GoalResult(agent, running, ABORTED, now, cell, "FAILED", "declared out"))
+        facts = self.world.notice(agent, 1 << 62, 0, sensed_until=until)
+        return BaseStopped(agent, life, now, facts.at, facts.dropped, facts.delivered)
 
-    def on_alive_sample(self, agent: int, _msg=None) -> None:
-        self.alive_seen.add(agent)
-        self.suspects.pop(agent, None)
+    def heard_talk(self) -> None:
+        self.active = True
 
-    def check_suspects(self, wall: float, now: float) -> None:
-        for agent, since in list(self.suspects.items()):
-            if wall - since >= self.failure_timeout:
-                del self.suspects[agent]
-                self.declare_failed(agent, now)
-
-    def declare_failed(self, agent: int, now: float) -> None:
-        """The robot is gone: stopped in the world, declared to the survivors with a notice stamped
-        above every watermark heard from it, counting the messages the world holds without a gap
-        (it relays them: each survivor can have them all), its sensing counted up to the last
-        watermark among those — and its sealed messages published again."""
-        if agent not in self.live:
-            return
+    def on_out(self, agent: int, now: float) -> None:
         self.live.discard(agent)
-        self.world.kill(agent, now)  # its partners' goals end at the next advance
-        h = self.heard[agent]
-        # stamped by the time now, not the timer's: declaring a robot republishes what it sealed,
-        # and a 50-robot world declaring several in one pass took seconds — a robot only thought
-        # failed commits on meanwhile, and its notice must come after what it committed
-        stamp = max(h.highest + 1, math.ceil(max(now, self.sim_now()) - 1e-9))
-        notice = self.world.notice(agent, stamp, h.contiguous, sensed_until=float(h.sensed_until()))
-        self.guard.publish(self.pub_lost, notice, run=self.run)
-        for pub, data in self.originals[agent]:
-            self.guard.relay(pub, data)  # as it was sealed by the robot itself
-        self.get_logger().warning(
-            f"agent {agent} lost (no liveliness for 2 x {self.failure_timeout:g} s): failed at sim "
-            f"time {now:.1f}, notice stamped {notice.t}, its sensing counted up to "
-            f"{h.sensed_until()}; {len(self.live)} survivors"
-        )
+        self.declared += 1
+        self.membership_log.append(("out", agent, round(now, 3)))
+        self.get_logger().warning(f"agent {agent} out at sim time {now:.1f}; {len(self.live)} in the team")
         if not self.live:
             self.end_run(now)
+
+    def on_stop_base(self, m: StopBase) -> None:
+        """(membership:=node) the membership node declared a robot out: stop its base, answer."""
+        if m.agent not in self.ids:
+            self.throttle.warn(self.sub_stop.topic_name, f"agent {m.agent}", "not in the scenario's team")
+            return
+        with self.lock:
+            now = self.sim_now()
+            self.advance(now)
+            facts = self.stop_base(m.agent, now, m.until, m.life)
+            self.guard.publish(self.pub_stopped, facts, run=self.run, receivers=(auth.MEMBERSHIP,))
+            self.on_out(m.agent, now)
+            self.after_events()
 
     # ------------------------------------------------------------------ end
 
@@ -656,6 +590,8 @@ class RealtimeWorldNode(Node):
         ends += [o.delivered for o in self.world.objects.values() if o.delivered is not None]
         self.world.end = max(ends, default=now)
         self.ended, self.ended_wall = self.world.end, time.monotonic()
+        for agent, t in self.world.outs.items():  # out when the run ended: failed, in the record
+            self.world.failed.setdefault(agent, t)
         self.completed = self.world.done and not self.world.undeliverable()
         self.guard.publish(self.pub_end, RunEnd(self.world.t, self.world.t, self.completed, run=self.run))
         self.write_progress(self.world.end, last=True)
@@ -698,6 +634,14 @@ class RealtimeWorldNode(Node):
             "stalls": [list(s) for s in RunConfig.of(self.p).stalls()],
             "disagreements": bad,
             "coordinations_compared": compared,
+            "membership": {
+                "monitor": self.p["membership"],
+                "failure_timeout_s": self.failure_timeout,
+                "declared": self.declared,
+                "rejoins": self.rejoins,
+                "out_at_end": sorted(self.world.outs),
+                "events": [list(e) for e in self.membership_log],
+            },
             "lag": {str(r.agent): r.lag for r in sorted(self.reports.values(), key=lambda r: r.agent)},
             "wall_s": round(wall, 3),
             "bring_up_s": None if self.bring_up_s is None else round(self.bring_up_s, 2),

@@ -285,7 +285,7 @@ class RealtimeAgent:
         self._commit(now)
         return self._flush(now)
 
-    def on_message(self, payload: Envelope | Mark | Need | Lost, now: float) -> list[Output]:
+    def on_message(self, payload: Envelope | Mark | Need | Lost | Hello, now: float) -> list[Output]:
         """A peer's message (or the world's failure notice), as it arrives."""
         self._commit(now)
         if isinstance(payload, Envelope):

@@ -25,9 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from ost_ros.realtime.messages import WORLD, Back, Envelope, Hello, Mark, Need
-
-MONITOR = WORLD  # the monitor's id in the agreement layer (its notices' sender)
+from ost_ros.realtime.messages import MONITOR, Back, Envelope, Hello, Mark, Need
 
 
 @dataclass
@@ -88,6 +86,13 @@ class Monitor:
         return self.tick(now)
 
     def _watermark(self, agent: int, watermark: int, seq: int) -> None:
+        self.note(agent, watermark, seq)
+
+    def note(self, agent: int, watermark: int, seq: int) -> None:
+        """Robot ``agent`` has passed ``watermark`` with ``seq`` messages sent (a node that must
+        hold every message it counts — to relay them — notes only what it holds without a gap)."""
+        if agent not in self.lives:
+            return
         w, q = self.heard.get(agent, (-1, 0))
         if watermark > w:
             self.heard[agent] = (watermark, max(seq, q))
@@ -98,11 +103,12 @@ class Monitor:
         return [a for a in self.team if a not in self.out and a not in self.dead]
 
     def tick(self, now: float) -> list[Mark]:
-        """Commit as far as its clock and every member's watermark allow; announce what is
+        """Commit as far as its clock (``now``; infinite: none — a node's, whose members'
+        watermarks bound it anyway) and every member's watermark allow; announce what is
         wanted."""
-        top = math.floor(now + 1e-9)
-        for a in self.members():
-            top = min(top, self.heard[a][0])
+        marks = [self.heard[a][0] for a in self.members()]
+        clock = [math.floor(now + 1e-9)] if math.isfinite(now) else []
+        top = min(clock + marks) if clock + marks else self.committed
         if top > self.committed:
             self.committed = top
         due = [w for w in self.wanted if w <= self.committed]

@@ -15,7 +15,6 @@ from typing import Any, ClassVar
 from ost_ros.messages import (  # the protocol schemas (one import site for the package)
     FINISH_STATE,
     SEARCHING_STATE,
-    WORLD,
     Action,
     ActionKind,
     AgentLost,
@@ -33,8 +32,8 @@ from ost_ros.protocols.ccp.messages import ScheduleUpdate
 
 __all__ = [
     "FINISH_STATE",
+    "MONITOR",
     "SEARCHING_STATE",
-    "WORLD",
     "Action",
     "ActionKind",
     "AgentLost",
@@ -57,6 +56,9 @@ __all__ = [
     "SearchDone",
     "Status",
 ]
+
+
+MONITOR = -2  # the membership monitor's id in the agreement layer (and its signer's on the wire)
 
 
 @dataclass(frozen=True)
@@ -238,3 +240,31 @@ class BaseGoal:
     object: int = -1
     group: tuple[int, ...] = ()
     state: str = ""
+    life: int = 0  # the robot's incarnation (a base stopped when it was declared out: a later one)
+
+
+@dataclass(frozen=True)
+class StopBase:
+    """The membership monitor to robot ``agent``'s base: its robot is declared out (its life
+    ``life`` ends); stop, and say what the notice needs — where the robot was at ``until`` (its
+    counted sensing ends there), its load, its deliveries (:class:`BaseStopped`)."""
+
+    TYPE: ClassVar[str] = "stop_base"
+    agent: int
+    life: int
+    until: float
+
+
+@dataclass(frozen=True)
+class BaseStopped:
+    """Robot ``agent``'s base, stopped at ``t`` for the end of life ``life``: ``at`` — the cell it
+    occupied at the time asked for, ``dropped`` — the object it held or carried, where it now
+    lies, ``delivered`` — the objects whose delivery it took part in (a notice's facts)."""
+
+    TYPE: ClassVar[str] = "base_stopped"
+    agent: int
+    life: int
+    t: float
+    at: Cell = (0, 0)
+    dropped: tuple[ObjectInfo, ...] = ()
+    delivered: tuple[int, ...] = ()

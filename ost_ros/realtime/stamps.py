@@ -35,8 +35,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
-from ost_ros.realtime.messages import WORLD as MONITOR
-from ost_ros.realtime.messages import Envelope, Lost, Mark, Need
+from ost_ros.realtime.messages import MONITOR, Envelope, Lost, Mark, Need
 
 
 class LateMessage(RuntimeError):

@@ -311,6 +311,10 @@ class RealtimeWorld:
     # with the rest): what a robot whose base is across a network keeps its picture from.
     tracking: bool = False
     refusals: list[str] = field(default_factory=list)
+    # A robot declared out is stopped, not dead: the run waits for it to come back and finish
+    # (in process, where a silence ends for sure); False over DDS, where nobody knows whether it
+    # will (a robot back before the end is used; the end does not wait).
+    wait_for_out: bool = True
 
     def __post_init__(self) -> None:
         if self.speed_jitter < 0:
@@ -371,7 +375,7 @@ class RealtimeWorld:
     @property
     def survivors(self) -> int:
         """Robots not dead (one declared out is stopped, not dead: the run waits for it)."""
-        return sum(b.alive or b.out for b in self.bots.values())
+        return sum(b.alive or (b.out and self.wait_for_out) for b in self.bots.values())
 
     @property
     def done(self) -> bool:
@@ -381,7 +385,9 @@ class RealtimeWorld:
             n = self.survivors
             self._done = all(
                 o.delivered is not None or o.spec.required > n for o in self.objects.values()
-            ) and all(b.finished is not None for b in self.bots.values() if b.alive or b.out)
+            ) and all(
+                b.finished is not None for b in self.bots.values() if b.alive or (b.out and self.wait_for_out)
+            )
         return self._done
 
     # ------------------------------------------------------------------ goals

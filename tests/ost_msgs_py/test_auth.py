@@ -58,14 +58,16 @@ def receiver(keys, who, kind=Selection, topic=TOPIC, skip=None):
 
 
 def test_key_files_are_private_and_the_team_file_public(keys):
-    for name in ("world", "agent_0", "agent_1", "agent_2"):
+    ids = {"world": auth.WORLD, "membership": auth.MEMBERSHIP, "agent_0": 0, "agent_1": 1, "agent_2": 2}
+    for name, signer in ids.items():
         assert stat.S_IMODE((keys / f"{name}.key").stat().st_mode) == 0o600
         assert (keys / f"{name}.key").read_text().startswith("-----BEGIN PRIVATE KEY-----")
-        assert isinstance(auth.load_private(keys, -1 if name == "world" else int(name[-1])), X25519PrivateKey)
+        assert isinstance(auth.load_private(keys, signer), X25519PrivateKey)
     assert stat.S_IMODE(keys.stat().st_mode) == 0o700
     team = auth.load_team(keys)
-    assert team.run == "abc123" and sorted(team.keys) == [auth.WORLD, 0, 1, 2]
-    assert team.members == (auth.WORLD, 0, 1, 2)  # the tag vector's slots
+    assert team.run == "abc123" and sorted(team.keys) == [auth.MEMBERSHIP, auth.WORLD, 0, 1, 2]
+    # the tag vector's slots: the world, the membership monitor, the robots
+    assert team.members == (auth.WORLD, auth.MEMBERSHIP, 0, 1, 2)
 
 
 def test_a_pairwise_key_is_the_two_members_and_one_direction(keys):
@@ -82,7 +84,7 @@ def test_a_pairwise_key_is_the_two_members_and_one_direction(keys):
     other = b.receive[0].copy()
     other.update(b"digest")
     assert tag.digest() == other.digest()
-    assert auth.Sealer(a).size == 4 * auth.TAG  # the world and three agents
+    assert auth.Sealer(a).size == 5 * auth.TAG  # the world, the membership monitor, three agents
 
 
 def test_a_genuine_message_passes_once_at_every_receiver(keys):
@@ -98,7 +100,7 @@ def test_a_genuine_message_passes_once_at_every_receiver(keys):
 
 
 def data_counter(data: bytes) -> int:
-    return auth.trailer(data, 4 * auth.TAG)[0]
+    return auth.trailer(data, 5 * auth.TAG)[0]
 
 
 @pytest.mark.parametrize(
@@ -114,7 +116,7 @@ def data_counter(data: bytes) -> int:
         ("a tick by an agent", "forged: sealed by agent 1, sent as the world"),
         ("unknown signer", "forged: agent 7 has no key in this run"),
         ("stranger's key", "forged: the tag does not match"),
-        ("another team's size", "forged: no tag vector of this team's size (4 members)"),
+        ("another team's size", "forged: no tag vector of this team's size (5 members)"),
         ("sealed for another", "forged: no tag for agent 2 (sealed for other receivers)"),
         ("truncated", "forged: no tag vector of this team's size"),
         ("extended", "forged: no tag vector of this team's size"),
@@ -131,7 +133,7 @@ def test_forgeries_are_dropped_with_the_reason(tmp_path, keys, case, why):
         data = sealed(k0, selection(), topic="/ost/object_found")
     elif case in ("altered", "tag altered"):
         data = bytearray(sealed(k0, selection()))
-        data[-auth.TAG + 5 if case == "tag altered" else -4 * auth.TAG - 40] ^= 1  # agent 2's tag; the body
+        data[-auth.TAG + 5 if case == "tag altered" else -5 * auth.TAG - 40] ^= 1  # agent 2's tag; the body
         data = bytes(data)
     elif case == "other run":
         data = sealed(member(keys, 0, auth.Team("other", team.keys)), selection())
@@ -178,7 +180,7 @@ def test_whoever_holds_a_robots_key_can_forge_only_to_that_robot(keys):
     s = auth.Sealer(as_2)
     data = wire.to_cdr(selection(2), counter=s.next(), signer=2, tags=s.size)
     s.seal(data, TOPIC)
-    slot1 = 2 * auth.TAG  # (the world, agent 0, agent 1, agent 2)
+    slot1 = 3 * auth.TAG  # (the world, the membership monitor, agent 0, agent 1, agent 2)
     k21 = auth.pair_key(stolen.exchange(team.keys[2]), "abc123", 2, 1)
     start = len(data) - s.size
     data[start + slot1 : start + slot1 + auth.TAG] = auth.tag(k21, auth.digest(TOPIC, data[:start]))
@@ -216,8 +218,9 @@ def test_a_dead_robots_original_relayed_by_another_verifies_everywhere(keys):
 def test_a_message_for_one_receiver_is_sealed_for_it_alone(keys):
     tick = Tick(1, 0, Observation(0, 1, (0, 0)), run="abc123")
     data = sealed(member(keys, auth.WORLD), tick, "/ost/agent_0/tick", receivers=(0,))
-    tags = data[-4 * auth.TAG :]
-    assert tags[: auth.TAG] == bytes(auth.TAG) and tags[2 * auth.TAG :] == bytes(2 * auth.TAG)
+    tags = data[-5 * auth.TAG :]
+    # slots: the world, the membership monitor, agent 0 (the only tag), agents 1 and 2
+    assert tags[: 2 * auth.TAG] == bytes(2 * auth.TAG) and tags[3 * auth.TAG :] == bytes(2 * auth.TAG)
     recv, log, _ = receiver(keys, 0, Tick, "/ost/agent_0/tick")
     assert recv.receive(data) == tick and not log.lines
 

@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
@@ -62,9 +63,12 @@ def release_domain(domain: int) -> None:
         lock.rmdir()
 
 
-def ost_up(*args: str, timeout: float = 240) -> subprocess.CompletedProcess:
-    """Run ost_up.sh (it picks its own free domain) and return its completed process. On a
-    time-out the whole process group is ended (ost_up.sh's own teardown first), never orphaned."""
+def ost_up(
+    *args: str, timeout: float = 240, during: Callable[[], None] | None = None
+) -> subprocess.CompletedProcess:
+    """Run ost_up.sh (it picks its own free domain) and return its completed process; ``during``
+    is called while it runs (a fault the test injects). On a time-out the whole process group is
+    ended (ost_up.sh's own teardown first), never orphaned."""
     env = dict(os.environ)
     env.pop("ROS_DOMAIN_ID", None)
     env["OST_VENV"] = str(BIN.parent)
@@ -76,8 +80,15 @@ def ost_up(*args: str, timeout: float = 240) -> subprocess.CompletedProcess:
         env=env,
         start_new_session=True,
     )
+    t0 = time.monotonic()
     try:
-        out, err = p.communicate(timeout=timeout)
+        if during is not None:
+            try:
+                during()
+            except BaseException:
+                os.killpg(p.pid, signal.SIGTERM)
+                raise
+        out, err = p.communicate(timeout=max(1.0, timeout - (time.monotonic() - t0)))
     except subprocess.TimeoutExpired:
         os.killpg(p.pid, signal.SIGTERM)  # ost_up.sh tears its nodes down on TERM
         try:

@@ -30,7 +30,7 @@ from tests.ros.test_ros2cli import ROS2
 
 VENV = BIN.parent
 UNDERLAY = VENV / "setup.bash"  # written by bringup_scripts/build_msgs.sh (ament's prefix setup)
-NODES = ("agent_node", "watch_node", "world_node")
+NODES = ("agent_node", "membership_node", "watch_node", "world_node")
 # what a fresh clone holds, not what runs and builds left in the source tree
 IGNORED = shutil.ignore_patterns(
     ".git", ".venv", "build", "install", "log", "__pycache__", "*.egg-info", ".*_cache", ".hypothesis"

@@ -7,7 +7,9 @@ steps (those live in the in-process latency model, tests/ost_ros/realtime)."""
 from __future__ import annotations
 
 import json
+import os
 import shlex
+import signal
 import subprocess
 import sys
 import time
@@ -175,3 +177,90 @@ def test_a_robot_killed_at_any_moment_leaves_no_find_unreported(tmp_path, when):
     assert [f["agent"] for f in result["failures"]] == [2]
     assert result["disagreements"] == 0 and result["agreement"]
     assert all(o["delivered"] is not None for o in result["objects"]), result.get("error")
+
+
+def _wait_for(what, cond, timeout=120.0):
+    """Poll ``cond`` until it holds (a condition of the run, never a fixed sleep)."""
+    end = time.monotonic() + timeout
+    while not cond():
+        if time.monotonic() > end:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.05)
+
+
+def _sim_time(run_dir):
+    try:
+        return float((run_dir / "progress").read_text().split()[0])
+    except (OSError, IndexError, ValueError):
+        return -1.0
+
+
+def test_a_robot_stopped_for_5_s_is_declared_out_comes_back_and_works_again(tmp_path):
+    """The run that lost a robot for good (SIGSTOP of robot 2 for 5 s at rtf 20: declared failed,
+    it left and the run never ended): now it is declared out, asks back when it runs again, is
+    readmitted by the team and given work; every object delivered, 0 disagreements."""
+    path = tmp_path / "scenario.yaml"
+    path.write_text(dump_scenario(generate_scenario(6, 10, 919, Grid(120, 60), 3)))
+    run_dir = tmp_path / "run"
+
+    def stop_robot_2():
+        _wait_for("sim time 100", lambda: _sim_time(run_dir) >= 100)
+        pid = int((run_dir / "agent_2.pid").read_text())
+        os.kill(pid, signal.SIGSTOP)
+        try:
+            time.sleep(5.0)  # the fault itself: 5 s without the robot (failure timeout 1 s)
+        finally:
+            os.kill(pid, signal.SIGCONT)
+
+    run = ost_up(
+        "--scenario", str(path), "--realtime", "--rtf", "20", "--json",
+        "--run-dir", str(run_dir), "--timeout", "300", during=stop_robot_2, timeout=320,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr[-3000:]
+    result = result_json(run.stdout)
+    kept_its_promise(result, 10)
+    m = result["membership"]
+    assert m["declared"] >= 1 and m["rejoins"] == m["declared"] and m["out_at_end"] == []
+    assert result["failures"] == []  # nobody left
+    back = max(t for kind, a, t in m["events"] if kind == "back" and a == 2)
+    assert any(2 in o["agents"] and o["start"] > back for o in result["objects"])  # it works again
+
+
+def test_a_team_whose_world_has_no_membership_role_runs_with_a_membership_node(tmp_path):
+    """``membership:=node``: the world serves bases, sensing and the clock only; a
+    ``membership_node`` process of its own (the world's settings, its own key) watches
+    liveliness, commits and declares — a robot killed mid-run here. The run keeps every promise
+    of today's runs."""
+    path = _scenario(tmp_path, agents=5, objects=8, seed=2)
+    run_dir = tmp_path / "run"
+    prep = [str(BIN / "ost"), "up", "--prepare", "--scenario", str(path), "--realtime", "--rtf", "50",
+            "--run-dir", str(run_dir)]  # fmt: skip
+    subprocess.run(prep, check=True, capture_output=True)
+    lines = [line.split("\t") for line in (run_dir / "processes").read_text().splitlines()]
+    world = shlex.split(next(cmd for name, _host, cmd in lines if name == "world"))
+    domain = free_domain()
+    procs = Processes(run_dir, domain)
+    try:
+        procs.run("membership", [str(BIN / "membership_node"), *world[world.index("--ros-args") :]])
+        for name, _host, cmd in lines:
+            argv = shlex.split(cmd)
+            if name == "world":
+                argv += ["-p", "membership:=node"]
+            elif name == "agent_1":
+                argv += ["-p", "die_at_step:=60"]
+            procs.run(name, argv)
+        end = time.monotonic() + 180
+        while not (run_dir / "result.json").exists():  # written whole (tmp + rename)
+            assert procs.procs["world"].poll() is None, procs.log("world")[-3000:]
+            assert time.monotonic() < end, procs.log("membership")[-3000:]
+            time.sleep(0.2)
+        result = json.loads((run_dir / "result.json").read_text())
+        said = procs.log("membership")
+    finally:
+        procs.stop()
+        release_domain(domain)
+    assert result["membership"]["monitor"] == "node" and result["membership"]["declared"] == 1
+    assert [f["agent"] for f in result["failures"]] == [1]
+    assert result["disagreements"] == 0 and result["agreement"]
+    assert all(o["delivered"] is not None for o in result["objects"]), result.get("error")
+    assert "agent 1 out" in said

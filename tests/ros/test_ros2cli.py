@@ -96,7 +96,12 @@ def test_interface_and_package_are_known(domain):
     assert {"ost_msgs/msg/ObjectFound", "ost_msgs/msg/Selection", "ost_msgs/msg/Tick"} <= set(kinds)
     exes = ros2(domain, "pkg", "executables", "ost_ros")
     assert exes.returncode == 0, exes.stderr
-    assert exes.stdout.split("\n")[:3] == ["ost_ros agent_node", "ost_ros watch_node", "ost_ros world_node"]
+    assert exes.stdout.split("\n")[:4] == [
+        "ost_ros agent_node",
+        "ost_ros membership_node",
+        "ost_ros watch_node",
+        "ost_ros world_node",
+    ]
 
 
 def test_topics_echo_params_and_ros2_run_on_a_live_run(tmp_path, procs, domain):

@@ -1,0 +1,340 @@
+"""Who is in the team, over DDS (realtime runs; docs/realtime.md, "Who is in the team"): the
+membership role — apart from the simulator's bases, sensing and clock — and ``membership_node``,
+the process that runs it on its own (``ros2 run ost_ros membership_node``, one per team).
+
+    membership_node --ros-args -r __ns:=/ost -p scenario:=run.yaml -p realtime:=true ...
+    world_node --ros-args ... -p realtime:=true -p membership:=node   (the world without the role)
+
+The role (:class:`Membership`) is :class:`~ost_ros.realtime.membership.Monitor` on the wire:
+
+- it hears every robot's messages (kept sealed, to relay), watermarks (``marks``, ``needs``),
+  and the Hellos of robots that were declared out (``hellos``); it notes of each robot the
+  highest watermark whose messages it holds all of, commits what every member has passed and
+  says so on ``marks`` (sender -2, the monitor) when someone waits — every batch waits for it;
+- it watches each robot's liveliness (its ``alive`` topic's lease); silent too long, the robot is
+  declared out: its base stopped (``stop_bases`` → the world, which answers the notice's facts on
+  ``stopped_bases``; in the world's process, a call), its stamped notice on ``lost`` (latched),
+  its messages published again as it sealed them;
+- a robot out that runs again asks back (Hello); from then on the monitor waits for its watermark,
+  and a member readmits it with a stamped Back (the world takes its base back at its robot's
+  first goal of the new life).
+
+By default the world node runs the role in its own process (``membership:=world``); with
+``membership:=node`` the world has no membership role at all and this node's process runs it.
+On real bases this node and the agents are the team: nothing of the simulator decides who is in.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.node import Node
+from std_msgs.msg import String
+
+from ost_msgs_py import auth, wire
+from ost_ros.lockstep.messages import RunEnd, Sample
+from ost_ros.node import realtime as rtp
+from ost_ros.node import transport as tp
+from ost_ros.node.params import ParameterError, declare_role, node_scenario
+from ost_ros.node.run import run_node
+from ost_ros.node.signing import NodeAuth, node_auth
+from ost_ros.realtime.membership import Declaration, Monitor
+from ost_ros.realtime.messages import Back, BaseStopped, Hello, Lost, Mark, Need, StopBase
+from ost_ros.runconfig import WORLD
+
+START_S = 0.05  # (standalone) how often it looks whether every endpoint is matched
+
+
+@dataclass
+class Heard:
+    """What the monitor heard of one robot's messages: which arrived (its originals, to relay)
+    and the watermarks they and its marks carried — what its notice is made of."""
+
+    contiguous: int = 0  # every message 1..contiguous is here
+    ahead: set[int] = field(default_factory=set)
+    marks: list[tuple[int, int]] = field(default_factory=list)  # (watermark, seq) heard
+
+    def message(self, seq: int, watermark: int) -> bool:
+        """A message of it arrived; False if held already (the monitor's own relay)."""
+        if seq <= self.contiguous or seq in self.ahead:
+            return False
+        self.ahead.add(seq)
+        while self.contiguous + 1 in self.ahead:
+            self.contiguous += 1
+            self.ahead.discard(self.contiguous)
+        self.marks.append((watermark, seq))
+        return True
+
+    def held(self) -> tuple[int, int]:
+        """(watermark, seq): the highest watermark whose messages the monitor holds all of —
+        what it may count on (it relays them, should the robot be declared out); every base
+        event up to it was handled, so what the robot sensed up to there it reported in them."""
+        best = (-1, 0)
+        for w, s in self.marks:
+            if s <= self.contiguous and w > best[0]:
+                best = (w, s)
+        return best
+
+
+# (agent, now, until, life) -> the notice's facts now, or None: they come on stopped_bases
+Stopper = Callable[[int, float, float, int], BaseStopped | None]
+
+
+class Membership:
+    """The membership role of a node (the world's, or ``membership_node``'s): see the module
+    docstring. ``stop`` stops a robot's base and returns its notice's facts (or None: they come
+    later, :meth:`stopped`); ``now`` is sim time for the log (the world's clock, if it has one);
+    ``on_out(agent, now)``: a robot was declared out."""
+
+    def __init__(
+        self,
+        node: Node,
+        ids: tuple[int, ...],
+        p: dict[str, Any],
+        stop: Stopper,
+        now: Callable[[], float],
+        on_out: Callable[[int, float], None] = lambda a, t: None,
+        on_heard: Callable[[], None] = lambda: None,
+    ):
+        self.node, self.ids, self.stop, self.now, self.on_out = node, ids, stop, now, on_out
+        self.on_heard = on_heard  # (the world ticks faster while robots talk)
+        self.guard: NodeAuth = node_auth(p["keys"], p["insecure"], auth.MEMBERSHIP)
+        self.run = self.guard.run or ""
+        self.throttle = tp.Throttle(node.get_logger())
+        self.monitor = Monitor(ids)
+        self.heard = {i: Heard() for i in ids}
+        self.originals: dict[int, list[tuple[Any, bytes]]] = {i: [] for i in ids}
+        self.suspects: dict[int, float] = {}
+        self.alive_seen: set[int] = set()
+        self.waiting: dict[int, Declaration] = {}  # declared, its base's facts to come
+        self.started = self.ended = False
+        self.failure_timeout = float(p["failure_timeout"])
+        self._endpoints(p)
+
+    def _endpoints(self, p: dict[str, Any]) -> None:
+        node, q, g, th, quiet = self.node, tp.LOCKSTEP_QOS, self.guard, self.throttle, tp.no_events_pub
+
+        def other_run(m) -> bool:
+            return m.run != self.run
+
+        self.kind_subs = []
+        for kind in rtp.message_kinds(p["protocol"], p["coordination"]):
+            topic = tp.message_topic(kind)
+            pub = node.create_publisher(wire.ros_type(kind), topic, q, event_callbacks=quiet())
+            on = functools.partial(self.on_sample, pub)
+            self.kind_subs.append(
+                tp.subscribe(node, kind, topic, on, q, g, th, keep_bytes=True, skip=other_run)
+            )
+        self.pub_lost = node.create_publisher(wire.ros_type(Lost), rtp.LOST, tp.LATCHED_ALL_QOS)
+        self.pub_marks = node.create_publisher(wire.ros_type(Mark), rtp.MARKS, q, event_callbacks=quiet())
+        self.sub_marks = tp.subscribe(node, Mark, rtp.MARKS, self.on_mark, q, g, th, skip=other_run)
+        self.sub_needs = tp.subscribe(node, Need, rtp.NEEDS, self.on_mark, q, g, th, skip=other_run)
+        self.sub_hellos = tp.subscribe(node, Hello, rtp.HELLOS, self.on_hello, q, g, th, skip=other_run)
+        # Liveliness: a robot's lease lapsing makes it a suspect; silent on, it is declared out.
+        self.sub_alive = {}
+        if self.failure_timeout > 0:
+            for i in self.ids:
+                events = SubscriptionEventCallbacks(
+                    liveliness=functools.partial(self.on_liveliness, i), use_default_callbacks=False
+                )
+                self.sub_alive[i] = node.create_subscription(
+                    String,
+                    tp.alive_topic(i),
+                    functools.partial(self.on_alive_sample, i),
+                    tp.alive_qos(self.failure_timeout),
+                    event_callbacks=events,
+                )
+
+    def lacking(self) -> list[str]:
+        """What the run's start waits for on the monitor's side: every robot's writers matched,
+        its liveliness seen, every robot reading notices."""
+        n, out = len(self.ids), []
+        writers = min((s.get_publisher_count() for s in self.kind_subs), default=n)
+        if writers < n or self.sub_marks.get_publisher_count() < n:
+            out.append(f"message writers {writers}/{n}")
+        unseen = sorted(set(self.ids) - self.alive_seen) if self.sub_alive else []
+        if unseen:
+            out.append(f"liveliness from {unseen[:8]}")
+        if self.pub_lost.get_subscription_count() < n:
+            out.append("lost readers")
+        return out
+
+    # ------------------------------------------------------------------ what robots say
+
+    def on_sample(self, pub: Any, s: Sample, data: bytes) -> None:
+        sender = s.message.sender
+        if sender not in self.heard or not self.heard[sender].message(s.seq, s.watermark):
+            return
+        self.started = True
+        self.on_heard()
+        self.originals[sender].append((pub, data))
+        self.suspects.pop(sender, None)
+        if getattr(s.message, "SHARED", True):
+            self.monitor.wanted.add(s.step)  # every member will need that batch
+        if isinstance(s.message, Back):
+            b = s.message
+            self.monitor.lives[b.agent] = max(self.monitor.lives.get(b.agent, 0), b.incarnation)
+        self.heard_from(sender)
+
+    def on_mark(self, m: Mark | Need) -> None:
+        if m.sender not in self.heard:
+            return  # (its own)
+        self.started = True
+        self.on_heard()
+        self.heard[m.sender].marks.append((m.watermark, m.seq))
+        self.suspects.pop(m.sender, None)
+        if isinstance(m, Need):
+            self.monitor.wanted.add(m.stamp)
+        self.heard_from(m.sender)
+
+    def on_hello(self, h: Hello) -> None:
+        """A robot declared out asks to come back: from now on the monitor waits for its
+        watermark again (a member readmits it with a stamped Back)."""
+        if h.sender in self.heard:
+            self.node.get_logger().info(f"agent {h.sender} asks to come back (life {h.incarnation})")
+            self.monitor.hear(h, math.inf)
+            self.announce(self.monitor.tick(math.inf))
+
+    def heard_from(self, agent: int) -> None:
+        """What the monitor may count on of ``agent`` moved: it commits what every member has
+        passed, and says so if someone waits."""
+        w, s = self.heard[agent].held()
+        self.monitor.note(agent, w, s)
+        self.announce(self.monitor.tick(math.inf))
+
+    def announce(self, marks: list[Mark]) -> None:
+        for m in marks:
+            self.guard.publish(self.pub_marks, m, run=self.run)
+
+    # ------------------------------------------------------------------ silence
+
+    def on_liveliness(self, agent: int, info) -> None:
+        if info.alive_count > 0:
+            self.alive_seen.add(agent)
+            self.suspects.pop(agent, None)
+            return
+        if info.not_alive_count_change > 0 and self.started and not self.ended:
+            self.suspects.setdefault(agent, time.monotonic())
+
+    def on_alive_sample(self, agent: int, _msg=None) -> None:
+        self.alive_seen.add(agent)
+        self.suspects.pop(agent, None)
+
+    def check_suspects(self, wall: float) -> None:
+        for agent, since in list(self.suspects.items()):
+            if wall - since >= self.failure_timeout:
+                del self.suspects[agent]
+                self.declare(agent)
+
+    def declare(self, agent: int) -> None:
+        """The robot is silent too long: declared out with a notice stamped one above the last
+        watermark whose messages the monitor holds all of (counting those messages: it relays
+        them, so each member can have them all; its sensing counted up to that watermark); its
+        base stopped, the notice's facts from it."""
+        d = self.monitor.declare(agent)
+        if d is None:
+            return
+        now = self.now()
+        facts = self.stop(agent, now, float(d.watermark), d.life)
+        if facts is None:
+            self.waiting[agent] = d  # its base answers on stopped_bases
+        else:
+            self.publish_notice(d, facts)
+
+    def stopped(self, facts: BaseStopped) -> None:
+        """A base stopped for a declaration: its notice goes out."""
+        d = self.waiting.get(facts.agent)
+        if d is None or d.life != facts.life:
+            self.throttle.warn(
+                "stopped_bases", f"agent {facts.agent}", f"no declaration of life {facts.life} waits"
+            )
+            return
+        del self.waiting[facts.agent]
+        self.publish_notice(d, facts)
+
+    def publish_notice(self, d: Declaration, f: BaseStopped) -> None:
+        notice = Lost(
+            d.agent,
+            d.stamp,
+            f.dropped,
+            seq=d.seq,
+            at=f.at,
+            delivered=f.delivered,
+            incarnation=d.life,
+            serial=d.serial,
+        )
+        self.guard.publish(self.pub_lost, notice, run=self.run)
+        for pub, data in self.originals[d.agent]:
+            self.guard.relay(pub, data)  # as it was sealed by the robot itself
+        self.node.get_logger().warning(
+            f"agent {d.agent} out (no liveliness for 2 x {self.failure_timeout:g} s) at sim time "
+            f"{f.t:.1f}: notice stamped {d.stamp} (life {d.life}), its sensing counted up to {d.watermark}"
+        )
+        self.on_out(d.agent, f.t)
+        self.announce(self.monitor.tick(math.inf))
+
+
+class MembershipNode(Node):
+    """``<ns>/membership``: the membership role in a process of its own (the world node with
+    ``membership:=node`` has none)."""
+
+    def __init__(self):
+        super().__init__("membership", namespace=tp.NAMESPACE)
+        p = declare_role(self, WORLD)
+        scenario = node_scenario(p)
+        self.ids = tuple(a.id for a in scenario.agents)
+        self.done = False
+        self.role = Membership(self, self.ids, p, self.stop, lambda: -1.0)
+        g, th, q = self.role.guard, self.role.throttle, tp.LOCKSTEP_QOS
+
+        def other_run(m) -> bool:
+            return m.run != self.role.run
+
+        self.pub_stop = self.create_publisher(wire.ros_type(StopBase), rtp.STOP_BASES, q)
+        self.sub_stopped = tp.subscribe(
+            self, BaseStopped, rtp.STOPPED_BASES, self.role.stopped, q, g, th, skip=other_run
+        )
+        self.sub_end = tp.subscribe(self, RunEnd, tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS, g, th)
+        self.timer = self.create_timer(START_S, self.on_tick)
+        self.get_logger().info(
+            f"membership of {len(self.ids)} robots; failure timeout {p['failure_timeout']:g} s"
+        )
+
+    def stop(self, agent: int, now: float, until: float, life: int) -> None:
+        self.role.guard.publish(
+            self.pub_stop, StopBase(agent, life, until), run=self.role.run, receivers=(auth.WORLD,)
+        )
+
+    def on_tick(self) -> None:
+        self.role.check_suspects(time.monotonic())
+
+    def on_end(self, end: RunEnd) -> None:
+        if end.run == self.role.run:
+            self.role.ended = True
+            self.done = True
+
+
+def main(args=None) -> int:
+    try:
+        return run_node(
+            "membership_node",
+            MembershipNode,
+            args,
+            done=lambda node: node.done,
+            code=lambda node: 0,
+            interrupted=130,
+        )
+    except ParameterError as exc:  # (run_node reports its own; a belt for direct calls)
+        print(f"membership_node: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
