@@ -3,7 +3,8 @@
 The node wires :class:`~ost_ros.realtime.agent.RealtimeAgent` — the protocol's own agent as a set of
 callbacks — to DDS, and does nothing else: peers' messages (stamped, each carrying its sender's
 watermark, on the protocol's topics; watermarks alone on ``marks``, requests on ``needs``; the
-world's notices on ``lost``), its base's events (``agent_<i>/base``: numbered, in order) and its
+membership monitor's notices on ``lost`` — its own too: declared out, it asks back on ``hellos``
+and is readmitted by the team), its base's events (``agent_<i>/base``: numbered, in order) and its
 timers go in as they arrive; what the runtime returns — messages to publish, goals for its base,
 a timer, a digest — goes out.
 

@@ -4,12 +4,13 @@
 
 (a) promises: ``--runs`` random small runs mixing every protocol that runs without a barrier,
     latencies and jitter up to 50 steps, unequal speeds (speed noise), stalls, kills, silences
-    shorter and longer than the failure timeout (5, 20 or 60 steps) and joins — disagreements
+    shorter and longer than the failure timeout (5, 20 or 60 steps), joins and partitions — disagreements
     (must be 0), objects not delivered by their n_i robots while enough robots live, deadlocks,
     robots out at the end that had work left (must be 0: nobody leaves);
 (b) cost: the demo scenario (N=10, M=20, 500×200) at latency 5:5 — the makespan with one robot
     silent for less than the timeout, silent past it (declared out, back when it runs again),
-    joining late, against the same run without the fault (three latency seeds each).
+    joining late, the team split in halves, against the same run without the fault (three
+    latency seeds each).
 
 Writes ``membership.md`` into --out (default /tmp/ost_bench_membership); every figure in it is
 computed from the runs.
@@ -27,7 +28,7 @@ from pathlib import Path
 
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
-from ost_ros.realtime.net import Latency
+from ost_ros.realtime.net import Latency, Split
 from ost_ros.realtime.run import run_realtime
 from ost_ros.scenario import generate_scenario
 
@@ -69,6 +70,12 @@ def random_case(seed: int):
     }
     if rnd.random() < 0.3:
         kw["stalls"] = [(rnd.choice([a.id for a in s.agents]), rnd.randint(0, 150), rnd.randint(1, 80))]
+    if rnd.random() < 0.3 and n >= 2:  # a partition: robots shuffled into two groups
+        cut = rnd.randint(1, n - 1)
+        order = [a.id for a in s.agents]
+        rnd.shuffle(order)
+        groups = (frozenset(order[:cut]), frozenset(order[cut:]))
+        kw["splits"] = [Split(groups, float(rnd.randint(0, 300)), float(rnd.randint(1, 300)))]
     return s, protocol, policy, kw
 
 
@@ -94,6 +101,7 @@ def judge(s, r, report, dead) -> list[str]:
 
 def promises(runs: int, seed0: int) -> dict:
     tally = {"runs": 0, "broken": 0, "declared": 0, "rejoins": 0, "joins": 0, "kills": 0, "silences": 0}
+    tally["splits"] = 0
     by_protocol: dict[str, int] = {}
     failures = []
     t0 = time.monotonic()
@@ -113,6 +121,7 @@ def promises(runs: int, seed0: int) -> dict:
         tally["joins"] += len(kw["joins"])
         tally["kills"] += len(kw["failures"])
         tally["silences"] += len(kw["silences"])
+        tally["splits"] += len(kw.get("splits", ()))
         if bad:
             tally["broken"] += 1
             failures.append(f"seed {seed} ({name}): {'; '.join(bad)}")
@@ -125,6 +134,9 @@ def promises(runs: int, seed0: int) -> dict:
     return {"tally": tally, "protocols": by_protocol, "failures": failures}
 
 
+HALVES = (frozenset(range(5)), frozenset(range(5, 10)))
+
+
 def costs(seeds=(1, 2, 3)) -> list[tuple[str, list[float]]]:
     """Makespan of the demo at latency 5:5 with one fault, relative to the run without it."""
     s = generate_scenario(10, 20, 1)  # the demo's scenario
@@ -134,6 +146,8 @@ def costs(seeds=(1, 2, 3)) -> list[tuple[str, list[float]]]:
         ("silent 50 steps: out and back", {"silences": [(3, 200.0, 50.0)]}),
         ("silent 300 steps: out and back", {"silences": [(3, 200.0, 300.0)]}),
         ("joins at step 300", {"joins": {3: 300.0}}),
+        ("partition 0–4 | 5–9 for 100 steps (held)", {"splits": [Split(HALVES, 200.0, 100.0)]}),
+        ("partition 0–4 | 5–9 for 1000 steps (held)", {"splits": [Split(HALVES, 200.0, 1000.0)]}),
     ]
     rows = []
     for label, kw in faults:
@@ -164,7 +178,8 @@ def main() -> int:
         "",
         f"{t['runs']} random runs (seeds {a.seed0}..{a.seed0 + a.runs - 1}; "
         + ", ".join(f"{k} {v}" for k, v in sorted(p["protocols"].items()))
-        + f"): {t['silences']} silences, {t['kills']} kills, {t['joins']} joins; "
+        + f"): {t['silences']} silences, {t['kills']} kills, {t['joins']} joins, "
+        f"{t['splits']} partitions (held, 1–300 steps); "
         f"{t['declared']} robots declared out, {t['rejoins']} readmissions. "
         f"Runs that broke a promise: {t['broken']}.",
         "",

@@ -18,12 +18,12 @@ time, with no barrier. It serves :class:`~ost_ros.realtime.world.RealtimeWorld` 
   ``<ns>/clock`` (``rosgraph_msgs/Clock``) for tools and ``use_sim_time``, 10 times a second;
 - ``<ns>/agent_<i>/pose`` (``geometry_msgs/PoseStamped``, frame ``map``, 1 cell = 1 m) when the
   robot has moved, at most 10 times a second;
-- failures: an agent whose liveliness is lost (as in lockstep) is killed in the world and declared
-  with a stamped notice on ``<ns>/lost`` above every watermark the world heard from it; its
-  counted messages are those the world holds without a gap, its counted sensing ends where it was
-  at the last watermark among them (its base moved on while nobody heard of the death); the world
-  keeps every robot's sealed messages and publishes the dead robot's again, so a survivor that
-  lacks one of them gets it;
+- who is in the team: the membership role (``world_node.membership``) runs in this process —
+  every batch waits for its watermark, a robot silent past its lease is declared out with a
+  stamped notice on ``lost`` and its base stopped, a robot out that runs again asks back and is
+  readmitted by the team — unless ``membership:=node``: then a ``membership_node`` of its own
+  runs it, and this node only stops a base when asked (``stop_bases`` → ``stopped_bases``, the
+  notice's facts). A stopped base takes goals again from its robot's next life (``BaseGoal.life``);
 - the end: once every object is delivered and every robot finished, ``run_end`` asks for the
   agents' reports; their digests (``<ns>/digests``, as they came) are compared and the result —
   ``ost sim``'s JSON plus ``mode``, ``rtf``, ``disagreements`` and each agent's largest lag — goes

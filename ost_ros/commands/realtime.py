@@ -52,6 +52,22 @@ def join(text: str) -> tuple[int, int]:
     return a, t
 
 
+def split(text: str) -> tuple[tuple[frozenset[int], ...], int, int]:
+    """argparse type: GROUPS:STEP:S, GROUPS robots by commas, groups by slashes (0,1,2/3,4)."""
+    parts = text.split(":")
+    try:
+        groups_text, t, s = parts
+        groups = tuple(frozenset(int(x) for x in g.split(",")) for g in groups_text.split("/"))
+        step, steps = int(t), int(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected GROUPS:STEP:S (e.g. 0,1,2/3,4:100:50), got {text!r}") from None
+    if len(groups) < 2 or step < 0 or steps < 1 or any(a < 0 for g in groups for a in g):
+        raise argparse.ArgumentTypeError(f"expected two groups or more, STEP ≥ 0, S ≥ 1, got {text!r}")
+    if sum(len(g) for g in groups) != len(frozenset().union(*groups)):
+        raise argparse.ArgumentTypeError(f"a robot in two groups: {text!r}")
+    return groups, step, steps
+
+
 def positive(text: str) -> float:
     try:
         value = float(text)
@@ -115,6 +131,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="robot AGENT is not there at the start and joins at step STEP (repeatable)",
     )
     g.add_argument(
+        "--split",
+        type=split,
+        action="append",
+        default=[],
+        metavar="GROUPS:STEP:S",
+        help="a partition: from step STEP for S steps nothing passes between the groups (robots "
+        "by commas, groups by slashes: 0,1,2/3,4); held, delivered when it heals (repeatable)",
+    )
+    g.add_argument(
         "--failure-timeout",
         type=positive,
         default=None,
@@ -132,6 +157,7 @@ def check(args: argparse.Namespace) -> None:
             ("--stall", bool(args.stall)),
             ("--silence", bool(args.silence)),
             ("--join", bool(args.join)),
+            ("--split", bool(args.split)),
             ("--failure-timeout", args.failure_timeout is not None),
         ):
             if given:
@@ -154,7 +180,7 @@ def run(
     failures: dict[int, int],
 ) -> int:
     """The realtime run of ``ost sim``: print the result (text or JSON), exit 0 if completed."""
-    from ost_ros.realtime.net import Latency
+    from ost_ros.realtime.net import Latency, Split
     from ost_ros.realtime.run import check_realtime, run_realtime
 
     try:
@@ -166,6 +192,10 @@ def run(
         for a, *_ in given:
             if a not in ids:
                 raise UsageError(f"{flag}: no agent {a} (team {sorted(ids)})")
+    for groups, _, _ in args.split:
+        unknown = sorted(a for g in groups for a in g if a not in ids)
+        if unknown:
+            raise UsageError(f"--split: no agents {unknown} (team {sorted(ids)})")
     joins = dict(args.join)
     if len(joins) != len(args.join):
         raise UsageError("--join: an agent can join only once")
@@ -189,6 +219,7 @@ def run(
         silences=[(a, float(t), float(s)) for a, t, s in args.silence],
         joins={a: float(t) for a, t in joins.items()},
         failure_timeout=args.failure_timeout or 10.0,
+        splits=[Split(g, float(t), float(s)) for g, t, s in args.split],
     )
     result.lower_bound = lower_bound(scenario).value
     if args.json:
@@ -208,4 +239,6 @@ def run(
                 f"membership      {m['declared']} declared out (timeout {m['failure_timeout']} steps), "
                 f"{m['rejoins']} back, out at the end: {m['out_at_end'] or 'none'}"
             )
+        if args.split:
+            print(f"partitions      {len(args.split)}; {report.held} copies held until they healed")
     return 0 if result.completed and report.disagreements == 0 else 1

@@ -55,14 +55,47 @@ class EventQueue:
         return len(self._heap)
 
 
+@dataclass(frozen=True)
+class Split:
+    """A partition: from step ``start`` for ``steps`` steps, copies between robots of different
+    ``groups`` are held and delivered once it heals (their own delay after that); robots in no
+    group, and the membership monitor, reach everyone (its host, as the world's, stays
+    reachable from every robot)."""
+
+    groups: tuple[frozenset[int], ...]
+    start: float
+    steps: float
+
+    def __post_init__(self) -> None:
+        if self.start < 0 or self.steps <= 0:
+            raise ValueError(f"split from step {self.start} for {self.steps} steps")
+        seen: set[int] = set()
+        for g in self.groups:
+            if seen & g:
+                raise ValueError(f"split: robots {sorted(seen & g)} in two groups")
+            seen |= g
+        if len(self.groups) < 2:
+            raise ValueError("split: at least two groups")
+
+    def holds(self, sender: int | None, receiver: int, now: float) -> bool:
+        if not self.start <= now < self.start + self.steps or sender is None:
+            return False
+        gs = next((g for g in self.groups if sender in g), None)
+        gr = next((g for g in self.groups if receiver in g), None)
+        return gs is not None and gr is not None and gs is not gr
+
+
 @dataclass
 class Network:
-    """Broadcasts over seeded latencies into an :class:`EventQueue`."""
+    """Broadcasts over seeded latencies into an :class:`EventQueue` (``splits``: partitions that
+    hold copies between groups until they heal)."""
 
     queue: EventQueue
     latency: Latency = Latency()
     seed: int = 0
     sent: int = 0  # copies scheduled
+    splits: tuple[Split, ...] = ()
+    held: int = 0  # copies a partition held
     _rng: np.random.Generator = field(init=False)
 
     def __post_init__(self) -> None:
@@ -78,7 +111,15 @@ class Network:
         return self.latency.steps + float(self._rng.uniform(0, j))
 
     def send(self, now: float, payload: Any, receivers: Iterable[int]) -> None:
-        """One copy of ``payload`` to each receiver, each with its own delay."""
+        """One copy of ``payload`` to each receiver, each with its own delay (after the heal, if
+        a partition lies between them)."""
+        sender = getattr(payload, "sender", None)
         for r in receivers:
             self.sent += 1
-            self.queue.push(now + self.delay(), DELIVER, (r, payload))
+            at = now
+            for sp in self.splits:
+                if sp.holds(sender, r, now):
+                    at = max(at, sp.start + sp.steps)
+            if at > now:
+                self.held += 1
+            self.queue.push(at + self.delay(), DELIVER, (r, payload))

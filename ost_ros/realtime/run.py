@@ -34,7 +34,7 @@ from ost_ros.realtime.base import BaseMirror, mirror_of
 from ost_ros.realtime.comms import RtAuctionComm, RtCcpComm, RtNcpComm
 from ost_ros.realtime.membership import MONITOR, Monitor
 from ost_ros.realtime.messages import Back, Digest, Envelope, Mark, Need, ObjectInfo
-from ost_ros.realtime.net import DELIVER, KILL, WAKE, WORLD, EventQueue, Latency, Network
+from ost_ros.realtime.net import DELIVER, KILL, WAKE, WORLD, EventQueue, Latency, Network, Split
 from ost_ros.realtime.world import CarryStarted, Detection, Feedback, GoalResult, RealtimeWorld
 from ost_ros.result import RunResult
 from ost_ros.team import TeamInfo
@@ -115,6 +115,8 @@ class RealtimeReport:
     declared: int = 0  # notices of robots that were not dead (silent too long, or not there yet)
     rejoins: int = 0  # robots back (a Back counted)
     out_at_end: list[int] = field(default_factory=list)  # robots out (not dead) when the run ended
+    splits: tuple[Split, ...] = ()
+    held: int = 0  # copies a partition held until it healed
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -139,6 +141,11 @@ class RealtimeReport:
                 "declared": self.declared,
                 "rejoins": self.rejoins,
                 "out_at_end": self.out_at_end,
+                "splits": [
+                    ["/".join(",".join(map(str, sorted(g))) for g in sp.groups), _n(sp.start), _n(sp.steps)]
+                    for sp in self.splits
+                ],
+                "held": self.held,
             },
         }
 
@@ -506,6 +513,7 @@ def run_realtime(
     silences: Sequence[tuple[int, float, float]] = (),
     joins: Mapping[int, float] | None = None,
     failure_timeout: float = 10.0,
+    splits: Sequence[Split] = (),
 ) -> tuple[RunResult, RealtimeReport]:
     """One run without a barrier, in process; the result (as ``ost sim`` builds it) and what the
     realtime run adds (agreement, lags, network figures). ``failures``: agent -> the time it
@@ -516,7 +524,8 @@ def run_realtime(
     ``declare_after``: a failed robot is declared this many steps after it died (as over DDS);
     ``silences``: (agent, from, steps) — the robot's process stops that long (declared out past
     ``failure_timeout`` steps; it comes back when it runs again); ``joins``: agent -> the step it
-    joins at (out from the start, until then)."""
+    joins at (out from the start, until then); ``splits``: partitions, whose copies between
+    groups are held until they heal."""
     policy = policy or CoordinationPolicy()
     latency = latency or Latency()
     failures = dict(failures or {})
@@ -528,7 +537,7 @@ def run_realtime(
     run = _Run(
         RealtimeWorld(scenario, speed_jitter, seed, tuple(stalls), tracking=mirrors),
         {ra.id: ra for ra in agents},
-        Network(queue, latency, seed),
+        Network(queue, latency, seed, splits=tuple(splits)),
         queue,
         RealtimeReport(latency, seed, speed_jitter, tuple(stalls)),
         {ra.id for ra in agents},
@@ -538,6 +547,11 @@ def run_realtime(
     joins = dict(joins or {})
     # a robot out and back re-plans like a failure, after its silence (or its join) has passed
     away = sum(s[2] for s in silences) + max(joins.values(), default=0) + (len(silences) + len(joins)) * slack
+    away += sum(sp.steps for sp in splits) + len(splits) * slack
+    for sp in splits:
+        for g in sp.groups:
+            if not g <= set(run.agents):
+                raise ValueError(f"split: no agents {sorted(g - set(run.agents))}")
     limit = max_steps if max_steps is not None else 2 * bound + slack + sum(s[2] for s in stalls) + away
     run.base_lag, run.declare_after = base_lag, declare_after
     if failure_timeout <= 0:
@@ -562,6 +576,8 @@ def run_realtime(
         result.error = error
     run.report.lag = {ra.id: ra.max_lag for ra in agents}
     run.report.rejoins = sum(ra.rejoins for ra in agents)
+    run.report.splits = tuple(splits)
+    run.report.held = run.net.held
     run.report.out_at_end = sorted(run.world.outs)
     run.report.mirror_errors = run.mirror_errors
     run.report.disagreements, run.report.coordinations = disagreements(agents)

@@ -92,9 +92,20 @@ def test_a_robot_silent_past_the_timeout_and_one_that_joins(scenario):
         (("--latency", 1, "--join", "1:5", "--join", "1:9"), "--join: an agent can join only once"),
         (("--latency", 1, "--join", "1:5", "--fail", "1:9"), "--join: agent 1 also fails"),
         (("--latency", 1, "--failure-timeout", "-1"), "must be > 0"),
+        (("--latency", 1, "--split", "0,1/1,2:5:5"), "a robot in two groups"),
+        (("--latency", 1, "--split", "0,1:5:5"), "two groups or more"),
+        (("--latency", 1, "--split", "0/9:5:5"), "--split: no agents [9]"),
     ],
 )
 def test_bad_membership_flags_are_one_line(scenario, args, why):
     r = ost("sim", scenario, *args)
     assert r.returncode == 2 and why in r.stderr and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) <= 2, r.stderr
+
+
+def test_a_partition_holds_what_crosses_it_and_the_team_agrees_after_the_heal(scenario):
+    r = ost("sim", scenario, "--latency", "4:4", "--split", "0,1/2,3:20:80", "--json")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert d["completed"] and d["disagreements"] == 0
+    assert d["membership"]["splits"] == [["0,1/2,3", 20, 80]] and d["membership"]["held"] > 0

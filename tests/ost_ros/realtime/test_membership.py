@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
-from ost_ros.realtime.net import Latency
+from ost_ros.realtime.net import Latency, Split
 from ost_ros.realtime.run import run_realtime
 from ost_ros.scenario import generate_scenario
 from tests.ost_ros.realtime.test_run import check_run, teams
@@ -32,6 +32,18 @@ def faults(draw, s):
         elif kind == "join":
             joins[a] = float(draw(st.integers(1, 300)))
     return kills, silences, joins
+
+
+@st.composite
+def splits(draw, s):
+    """Sometimes a partition of the team in two, held 1–300 steps."""
+    ids = [a.id for a in s.agents]
+    if len(ids) < 2 or not draw(st.booleans()):
+        return []
+    order = draw(st.permutations(ids))
+    cut = draw(st.integers(1, len(ids) - 1))
+    groups = (frozenset(order[:cut]), frozenset(order[cut:]))
+    return [Split(groups, float(draw(st.integers(0, 300))), float(draw(st.integers(1, 300))))]
 
 
 @settings(max_examples=150, deadline=None)
@@ -57,6 +69,7 @@ def test_robots_declared_out_come_back_and_joiners_are_used_and_all_agree(data):
         silences=silences,
         joins=joins,
         failure_timeout=float(data.draw(st.sampled_from([5, 20, 60]))),
+        splits=data.draw(splits(s)),
     )
     check_run(s, r, report, kills)
     assert {f["agent"] for f in r.failures} <= set(kills)  # nobody but the killed failed
