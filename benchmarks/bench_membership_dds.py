@@ -42,7 +42,9 @@ def one(scenario: Path, rtf: float, stop: float | None, at: float, timeout: floa
     d = Path(tempfile.mkdtemp(prefix="ost-bench-mem-"))
     cmd = [OST, "up", "--scenario", str(scenario), "--realtime", "--rtf", str(rtf), "--json"]
     cmd += ["--run-dir", str(d / "run"), "--timeout", str(int(timeout))]
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    p = subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+    )
     resumed = None
     if stop is not None:
         end = time.monotonic() + timeout
@@ -99,7 +101,9 @@ def main() -> int:
                 "rejoins": m.get("rejoins", 0),
                 "out_at_end": m.get("out_at_end", []),
                 "back_after_s": fault["back_after_s"],
-                "ratio": fault["makespan"] / base["makespan"] - 1 if base["makespan"] and fault["makespan"] else None,
+                "ratio": fault["makespan"] / base["makespan"] - 1
+                if base["makespan"] and fault["makespan"]
+                else None,
             }
         )
         print(f"  pair {k + 1}/{a.runs}: {rows[-1]}", file=sys.stderr)

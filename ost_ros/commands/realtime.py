@@ -60,7 +60,9 @@ def split(text: str) -> tuple[tuple[frozenset[int], ...], int, int]:
         groups = tuple(frozenset(int(x) for x in g.split(",")) for g in groups_text.split("/"))
         step, steps = int(t), int(s)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected GROUPS:STEP:S (e.g. 0,1,2/3,4:100:50), got {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"expected GROUPS:STEP:S (e.g. 0,1,2/3,4:100:50), got {text!r}"
+        ) from None
     if len(groups) < 2 or step < 0 or steps < 1 or any(a < 0 for g in groups for a in g):
         raise argparse.ArgumentTypeError(f"expected two groups or more, STEP ≥ 0, S ≥ 1, got {text!r}")
     if sum(len(g) for g in groups) != len(frozenset().union(*groups)):
