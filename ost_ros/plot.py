@@ -5,6 +5,7 @@ Used by ``ost sim --plot FILE.png``. Matplotlib with the Agg backend (no display
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,6 +25,7 @@ STATE_COLOURS = {
     "MOVING": "#31a354",
     "RETURNING": "#756bb1",
 }
+MEMBERSHIP_COLOURS = {"OUT": "#bdbdbd", "FAILED": "#252525"}  # declared out (stopped), dead
 _MORE = ("#fd8d3c", "#c994c7", "#74c476", "#6baed6", "#bcbddc", "#fdd0a2")
 
 
@@ -39,9 +41,24 @@ def state_colours(protocol: str) -> dict[str, str]:
 @dataclass
 class Timeline:
     """Per agent, runs of equal global state: [state, first step, last step]. Feed it from the
-    step engine's ``on_step`` hook."""
+    step engine's ``on_step`` hook (or, for a run without a barrier, :meth:`of_labels`)."""
 
     runs: dict[int, list[list]] = field(default_factory=dict)
+    splits: list[tuple[str, float, float]] = field(default_factory=list)  # (groups, from, steps)
+
+    @classmethod
+    def of_labels(cls, labels: dict[int, list[tuple[float, str]]], end: float) -> Timeline:
+        """From a realtime world's changes of what each robot does (``RealtimeWorld.labels``),
+        each state lasting until the next change (or ``end``)."""
+        tl = cls()
+        for agent, changes in labels.items():
+            runs = tl.runs.setdefault(agent, [])
+            for k, (t, state) in enumerate(changes):
+                until = changes[k + 1][0] if k + 1 < len(changes) else end
+                first, last = math.ceil(t - 1e-9), math.ceil(until - 1e-9) - 1
+                if last >= first:
+                    runs.append([state, first, last])
+        return tl
 
     def __call__(self, world: World, actions: list[Action]) -> None:
         t = world.t - 1
@@ -121,7 +138,12 @@ def plot_run(scenario: Scenario, result: RunResult, timeline: Timeline, path: st
     ax_map.legend(loc="upper right", fontsize=7)
 
     colours = state_colours(result.protocol)
+    if any(r[0] in MEMBERSHIP_COLOURS for runs in timeline.runs.values() for r in runs):
+        colours |= MEMBERSHIP_COLOURS  # (a run without a barrier: who was out when)
     ids = [a.id for a in scenario.agents]
+    for groups, start, steps in timeline.splits:
+        ax_t.axvspan(start, start + steps, color="#fee391", alpha=0.5, lw=0)
+        ax_t.text(start, len(ids) - 0.45, f" split {groups}", fontsize=7, va="bottom")
     for row, aid in enumerate(ids):
         for state, first, last in timeline.runs.get(aid, []):
             if state in colours:

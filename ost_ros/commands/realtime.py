@@ -166,7 +166,6 @@ def check(args: argparse.Namespace) -> None:
                 raise UsageError(f"{flag} needs --latency (the run without a barrier)")
         return
     for flag, given in (
-        ("--plot", bool(args.plot)),
         ("--animate", bool(args.animate)),
         ("--engine", args.engine != "auto"),
     ):
@@ -224,6 +223,15 @@ def run(
         splits=[Split(g, float(t), float(s)) for g, t, s in args.split],
     )
     result.lower_bound = lower_bound(scenario).value
+    if args.plot:
+        from ost_ros.plot import Timeline, plot_run
+
+        timeline = Timeline.of_labels(report.labels, float(result.steps))
+        timeline.splits = [(s[0], float(s[1]), float(s[2])) for s in report.to_dict()["membership"]["splits"]]
+        try:
+            plot_run(scenario, result, timeline, args.plot)
+        except OSError as exc:
+            raise UsageError(f"{args.plot}: cannot write ({exc.strerror})") from None
     if args.json:
         print(json.dumps(result.to_dict() | report.to_dict(), indent=1))
     else:

@@ -117,6 +117,8 @@ class RealtimeReport:
     out_at_end: list[int] = field(default_factory=list)  # robots out (not dead) when the run ended
     splits: tuple[Split, ...] = ()
     held: int = 0  # copies a partition held until it healed
+    # agent -> (time, state) each time what its base does changes (OUT: declared out; --plot)
+    labels: dict[int, list[tuple[float, str]]] = field(default_factory=dict, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -577,6 +579,7 @@ def run_realtime(
     run.report.lag = {ra.id: ra.max_lag for ra in agents}
     run.report.rejoins = sum(ra.rejoins for ra in agents)
     run.report.splits = tuple(splits)
+    run.report.labels = run.world.labels
     run.report.held = run.net.held
     run.report.out_at_end = sorted(run.world.outs)
     run.report.mirror_errors = run.mirror_errors

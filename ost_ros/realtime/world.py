@@ -297,6 +297,9 @@ def _first_movable(t: float, period: int) -> float:
 # ----------------------------------------------------------------------------- the world
 
 
+OUT_STATE, FAILED_STATE = "OUT", "FAILED"  # a robot declared out (stopped), one dead (timeline)
+
+
 @dataclass
 class RealtimeWorld:
     """Ground truth of a run without a barrier. Callers pass time in (``at``, ``now``); the world
@@ -336,6 +339,8 @@ class RealtimeWorld:
         self.failed: dict[int, int] = {}  # agent -> step it failed in (the record's)
         self._loads: dict[int, tuple[int, Cell]] = {}  # a failed robot's load: object, where it lies
         self.outs: dict[int, int] = {}  # agent -> step it was declared out in (until it is back)
+        # agent -> (time, state) each time what it does changes: a run's timeline (--plot)
+        self.labels: dict[int, list[tuple[float, str]]] = {a.id: [] for a in self.scenario.agents}
         self.revived: list[tuple[int, float]] = []  # (agent, time) of every robot back
         self._done: bool | None = None  # cached ``done`` (None: to compute)
         self.end: float = 0.0
@@ -418,6 +423,7 @@ class RealtimeWorld:
         self._finish_label(b, goal, time)
         b.goal, b.version = gid, b.version + 1
         b.label = goal.state
+        self._labelled(agent, time, goal.state)
         if isinstance(goal, Follow):
             self._follow(b, goal, cell, time)
         elif isinstance(goal, Stand):
@@ -696,6 +702,12 @@ class RealtimeWorld:
         b.version += 1
         b.kind, b.route, b.goal = "dead", None, 0
         b.cell = self.position(agent, t)
+        self._labelled(agent, t, OUT_STATE if out else FAILED_STATE)
+
+    def _labelled(self, agent: int, t: float, state: str) -> None:
+        runs = self.labels[agent]
+        if not runs or runs[-1][1] != state:
+            runs.append((t, state))
 
     def revive(self, agent: int, t: float, life: int) -> None:
         """Robot ``agent``, stopped when it was declared out, is back (a member readmitted it): its

@@ -60,7 +60,8 @@ def test_a_run_with_latency_noise_stalls_and_a_failure(scenario):
         (("--latency", 1, "--speed-jitter", "-0.5"), "must be ≥ 0"),
         (("--latency", 1, "--protocol", "hcp"), "hcp does not run without a barrier"),
         (("--latency", 1, "--planner", "improved"), "--planner improved does not run without a barrier"),
-        (("--latency", 1, "--plot", "x.png"), "--plot is for the lockstep engines"),
+        (("--latency", 1, "--animate", "x.gif"), "--animate is for the lockstep engines"),
+        (("--latency", 1, "--plot", "/nonexistent/x.png"), "/nonexistent/x.png: cannot write"),
         (("--latency", 1, "--fail", "9:3"), "no such agent"),
     ],
 )
@@ -109,3 +110,16 @@ def test_a_partition_holds_what_crosses_it_and_the_team_agrees_after_the_heal(sc
     d = json.loads(r.stdout)
     assert d["completed"] and d["disagreements"] == 0
     assert d["membership"]["splits"] == [["0,1/2,3", 20, 80]] and d["membership"]["held"] > 0
+
+
+def test_the_plot_of_a_run_without_a_barrier_shows_who_was_out_when(scenario, tmp_path):
+    from ost_ros.plot import Timeline
+
+    png = tmp_path / "run.png"
+    r = ost(
+        "sim", scenario, "--latency", "4:4", "--silence", "1:30:60", "--split", "0,1/2,3:20:40", "--plot", png
+    )
+    assert r.returncode == 0, r.stderr
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    tl = Timeline.of_labels({1: [(0.0, "SEARCHING"), (38.5, "OUT"), (120.0, "DECISION")]}, 200.0)
+    assert tl.runs[1] == [["SEARCHING", 0, 38], ["OUT", 39, 119], ["DECISION", 120, 199]]
