@@ -173,21 +173,9 @@ def check(args: argparse.Namespace) -> None:
             raise UsageError(f"{flag} is for the lockstep engines, not with --latency")
 
 
-def run(
-    args: argparse.Namespace,
-    scenario: Scenario,
-    policy: CoordinationPolicy,
-    settings: Any,
-    failures: dict[int, int],
-) -> int:
-    """The realtime run of ``ost sim``: print the result (text or JSON), exit 0 if completed."""
-    from ost_ros.realtime.net import Latency, Split
-    from ost_ros.realtime.run import check_realtime, run_realtime
-
-    try:
-        check_realtime(args.protocol, policy, settings)
-    except ProtocolError as exc:
-        raise UsageError(f"--latency: {exc}") from None
+def _faults(args: argparse.Namespace, scenario: Scenario, failures: dict[int, int]) -> dict[int, int]:
+    """The robots the fault options name are in the team, and make sense together (one line
+    otherwise); the joins, agent -> step."""
     ids = {a.id for a in scenario.agents}
     for flag, given in (("--stall", args.stall), ("--silence", args.silence), ("--join", args.join)):
         for a, *_ in given:
@@ -205,6 +193,38 @@ def run(
             raise UsageError(f"--join: agent {a} also fails (--fail)")
     if joins and len(joins) == len(ids):
         raise UsageError("--join: somebody must be there at the start")
+    return joins
+
+
+def _plot(path: str, scenario: Scenario, result: Any, report: Any) -> None:
+    """The run drawn: the map, every robot's timeline from its base's goals (who was out when),
+    the partitions shaded."""
+    from ost_ros.plot import Timeline, plot_run
+
+    timeline = Timeline.of_labels(report.labels, float(result.steps))
+    timeline.splits = [(s[0], float(s[1]), float(s[2])) for s in report.to_dict()["membership"]["splits"]]
+    try:
+        plot_run(scenario, result, timeline, path)
+    except OSError as exc:
+        raise UsageError(f"{path}: cannot write ({exc.strerror})") from None
+
+
+def run(
+    args: argparse.Namespace,
+    scenario: Scenario,
+    policy: CoordinationPolicy,
+    settings: Any,
+    failures: dict[int, int],
+) -> int:
+    """The realtime run of ``ost sim``: print the result (text or JSON), exit 0 if completed."""
+    from ost_ros.realtime.net import Latency, Split
+    from ost_ros.realtime.run import check_realtime, run_realtime
+
+    try:
+        check_realtime(args.protocol, policy, settings)
+    except ProtocolError as exc:
+        raise UsageError(f"--latency: {exc}") from None
+    joins = _faults(args, scenario, failures)
     lat, jit = args.latency
     result, report = run_realtime(
         scenario,
@@ -224,14 +244,7 @@ def run(
     )
     result.lower_bound = lower_bound(scenario).value
     if args.plot:
-        from ost_ros.plot import Timeline, plot_run
-
-        timeline = Timeline.of_labels(report.labels, float(result.steps))
-        timeline.splits = [(s[0], float(s[1]), float(s[2])) for s in report.to_dict()["membership"]["splits"]]
-        try:
-            plot_run(scenario, result, timeline, args.plot)
-        except OSError as exc:
-            raise UsageError(f"{args.plot}: cannot write ({exc.strerror})") from None
+        _plot(args.plot, scenario, result, report)
     if args.json:
         print(json.dumps(result.to_dict() | report.to_dict(), indent=1))
     else:

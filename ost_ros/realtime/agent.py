@@ -193,6 +193,7 @@ class RealtimeAgent:
     sent: list[tuple[int, int]] = field(default_factory=list)  # (stamp, seq) of what it sent
     digests: dict[int, Digest] = field(default_factory=dict)  # stamp -> digest (coordinations)
     processed: set[int] = field(default_factory=set)  # stamps of every batch taken
+    taken_at: dict[int, float] = field(default_factory=dict)  # stamp -> when it was taken
     goal: Goal | None = None  # the goal running on its base
     goal_id: int = 0
     label: str = SEARCHING_STATE  # the state label its base last got
@@ -669,6 +670,7 @@ class RealtimeAgent:
     def _take(self, t: int, now: float) -> None:
         msgs = self.batches.take(t)
         self.processed.add(t)
+        self.taken_at[t] = now
         self.max_lag = max(self.max_lag, now - t)
         self.agent.communicate(t, msgs)
         self._readmit(t, msgs, now)

@@ -117,6 +117,9 @@ class RealtimeReport:
     out_at_end: list[int] = field(default_factory=list)  # robots out (not dead) when the run ended
     splits: tuple[Split, ...] = ()
     held: int = 0  # copies a partition held until it healed
+    # per partition: steps from its heal until every robot had taken the last batch stamped
+    # before it (all compute alike again); None: the run ended before
+    healed: list[float | None] = field(default_factory=list)
     # agent -> (time, state) each time what its base does changes (OUT: declared out; --plot)
     labels: dict[int, list[tuple[float, str]]] = field(default_factory=dict, repr=False)
 
@@ -148,6 +151,7 @@ class RealtimeReport:
                     for sp in self.splits
                 ],
                 "held": self.held,
+                "healed_after": [None if h is None else _n(round(h, 3)) for h in self.healed],
             },
         }
 
@@ -579,12 +583,27 @@ def run_realtime(
     run.report.lag = {ra.id: ra.max_lag for ra in agents}
     run.report.rejoins = sum(ra.rejoins for ra in agents)
     run.report.splits = tuple(splits)
+    run.report.healed = [healed(agents, sp.start + sp.steps, run.live) for sp in splits]
     run.report.labels = run.world.labels
     run.report.held = run.net.held
     run.report.out_at_end = sorted(run.world.outs)
     run.report.mirror_errors = run.mirror_errors
     run.report.disagreements, run.report.coordinations = disagreements(agents)
     return result, run.report
+
+
+def healed(agents: Sequence[RealtimeAgent], heal: float, live: set[int]) -> float | None:
+    """Steps from ``heal`` until every live robot in the team had taken the last batch stamped
+    before it (what the partition held up: from then on all compute alike again); 0 if none was
+    held past it, None if a robot never took it."""
+    stamps = [t for ra in agents for t in ra.taken_at if t < heal]
+    if not stamps:
+        return 0.0
+    last = max(stamps)
+    times = [ra.taken_at.get(last) for ra in agents if ra.id in live and not ra.out]
+    if any(t is None for t in times):
+        return None
+    return max(0.0, max(t for t in times if t is not None) - heal)
 
 
 def disagreements(agents: Sequence[RealtimeAgent]) -> tuple[int, int]:
