@@ -1,7 +1,8 @@
 """``ost keys``: the key material of a secure DDS run (docs/ros.md, "Authenticated messages").
 
-``ost keys make DIR --scenario FILE`` writes one X25519 key per robot of the scenario's team and
-one for the world (``agent_<i>.key``, ``world.key``: mode 0600, each node reads only its own; any
+``ost keys make DIR --scenario FILE`` writes one X25519 key per robot of the scenario's team, one
+for the world and one for the membership monitor of realtime runs (``agent_<i>.key``,
+``world.key``, ``membership.key``: mode 0600, each node reads only its own; any
 two members derive from them the key they seal their messages to each other with) and
 ``team.yaml`` (the run id and every public key, which every node reads).
 ``ost_up.sh`` and the launch file do it for every run; ``ost keys show DIR`` prints what a
@@ -52,14 +53,14 @@ def cmd_make(args: argparse.Namespace) -> int:
         team = make_keys(args.dir, ids, args.run)
     except OSError as exc:
         raise UsageError(f"{args.dir}: cannot write keys ({exc.strerror})") from None
-    print(f"{args.dir}: keys for the world and {len(ids)} agents, run {team.run}")
+    print(f"{args.dir}: keys for the world, the membership monitor and {len(ids)} agents, run {team.run}")
     return 0
 
 
 def cmd_show(args: argparse.Namespace) -> int:
     from cryptography.hazmat.primitives import serialization
 
-    from ost_msgs_py.auth import WORLD, AuthError, load_team, signer_name
+    from ost_msgs_py.auth import MEMBERSHIP, WORLD, AuthError, load_team, signer_name
 
     try:
         team = load_team(args.dir)
@@ -70,11 +71,15 @@ def cmd_show(args: argparse.Namespace) -> int:
         raw = key.public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw)
         return hashlib.sha256(raw).hexdigest()[:16]
 
-    signers = {("world" if s == WORLD else str(s)): fingerprint(k) for s, k in sorted(team.keys.items())}
+    names = {WORLD: "world", MEMBERSHIP: "membership"}
+    signers = {names.get(s, str(s)): fingerprint(k) for s, k in sorted(team.keys.items())}
     if args.json:
         print(json.dumps({"run": team.run, "signers": signers}, indent=1))
         return 0
-    print(f"run {team.run}: {len(team.keys) - 1} agents and the world")
+    agents = sum(1 for s in team.keys if s >= 0)
+    print(
+        f"run {team.run}: {agents} agents, the world{' and the membership monitor' if MEMBERSHIP in team.keys else ''}"
+    )
     for s, k in sorted(team.keys.items()):
-        print(f"  {signer_name(s):<12} sha256:{fingerprint(k)}")
+        print(f"  {signer_name(s):<22} sha256:{fingerprint(k)}")
     return 0

@@ -265,12 +265,14 @@ def test_sim_every_protocol_recovers_from_a_failure(scenario, protocol):
 
 def test_keys_make_and_show(scenario, tmp_path):
     r = ost("keys", "make", tmp_path / "k", "--scenario", scenario, "--run", "run1")
-    assert r.returncode == 0 and "keys for the world and 4 agents, run run1" in r.stdout, r.stderr
+    assert (
+        r.returncode == 0 and "keys for the world, the membership monitor and 4 agents, run run1" in r.stdout
+    )
     assert sorted(p.name for p in (tmp_path / "k").iterdir()) == [
-        "agent_0.key", "agent_1.key", "agent_2.key", "agent_3.key", "team.yaml", "world.key",
+        "agent_0.key", "agent_1.key", "agent_2.key", "agent_3.key", "membership.key", "team.yaml", "world.key",
     ]  # fmt: skip
     shown = json.loads(ost("keys", "show", tmp_path / "k", "--json").stdout)
-    assert shown["run"] == "run1" and sorted(shown["signers"]) == ["0", "1", "2", "3", "world"]
+    assert shown["run"] == "run1" and sorted(shown["signers"]) == ["0", "1", "2", "3", "membership", "world"]
 
 
 @pytest.mark.parametrize(

@@ -33,7 +33,7 @@ def test_the_run_directory_of_a_generated_scenario(tmp_path, capsys):
     ost(["generate", "--agents", "4", "--objects", "6", "--seed", "2", "--width", "30", "--height", "12",
          "--nmax", "3"])  # fmt: skip
     assert (d / "scenario.yaml").read_text() == capsys.readouterr().out  # `ost generate`'s scenario
-    assert sorted(load_team(d / "keys").keys) == [-1, 0, 1, 2, 3]  # the world and every agent
+    assert sorted(load_team(d / "keys").keys) == [-2, -1, 0, 1, 2, 3]  # the monitor, the world, every agent
     agent = yaml.safe_load((d / "agent.params.yaml").read_text())["/**"]["ros__parameters"]
     world = yaml.safe_load((d / "world.params.yaml").read_text())["/**"]["ros__parameters"]
     assert set(agent) == {s.name for s in of_node(AGENT)} and set(world) == {s.name for s in of_node(WORLD)}
