@@ -148,8 +148,9 @@ def costs(seeds=(1, 2, 3)) -> list[tuple[str, list[float]]]:
         ("silent 50 steps: out and back", {"silences": [(3, 200.0, 50.0)]}),
         ("silent 300 steps: out and back", {"silences": [(3, 200.0, 300.0)]}),
         ("joins at step 300", {"joins": {3: 300.0}}),
-        ("partition 0–4 | 5–9 for 100 steps (held)", {"splits": [Split(HALVES, 200.0, 100.0)]}),
-        ("partition 0–4 | 5–9 for 1000 steps (held)", {"splits": [Split(HALVES, 200.0, 1000.0)]}),
+        ("partition 0–4 / 5–9 for 100 steps (held)", {"splits": [Split(HALVES, 200.0, 100.0)]}),
+        ("partition 0–4 / 5–9 for 1000 steps (held)", {"splits": [Split(HALVES, 200.0, 1000.0)]}),
+        ("partition 0–4 / 5–9 for 5000 steps (held)", {"splits": [Split(HALVES, 200.0, 5000.0)]}),
     ]
     rows = []
     for label, kw in faults:

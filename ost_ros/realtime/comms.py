@@ -349,6 +349,13 @@ class RtCcpComm(RtRecovery, CcpComm):
             return None  # statuses, an update: it waits for messages
         return super().next_event(t)
 
+    def _adopt(self, t: int, msg: ScheduleUpdate) -> None:
+        super()._adopt(t, msg)
+        if self.state is CommState.CLOSED and self.knowledge.unscheduled:
+            # a robot came back while the final update was on its way, and with it objects that
+            # had been impossible: the comm is not closed, it plans them next
+            self.state, self.closing = CommState.LISTENING, False
+
     @property
     def coordinator(self) -> int:
         """The lowest-id survivor that never came back: a robot readmitted does not take the role
