@@ -117,8 +117,9 @@ def _public_hex(key: X25519PublicKey) -> str:
 
 
 def make_keys(directory: str | Path, ids: Iterable[int], run: str | None = None) -> Team:
-    """Fresh keys for the world and agents ``ids`` in ``directory`` (created 0700; private keys
-    0600, PEM/PKCS#8, readable with ``openssl pkey``), and ``team.yaml``. Returns the team."""
+    """Fresh keys for the world, the membership monitor and agents ``ids`` in ``directory``
+    (created 0700; private keys 0600, PEM/PKCS#8, readable with ``openssl pkey``), and
+    ``team.yaml``. Returns the team."""
     d = Path(directory)
     d.mkdir(mode=0o700, parents=True, exist_ok=True)
     run = run or secrets.token_hex(6)
