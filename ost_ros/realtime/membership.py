@@ -53,7 +53,6 @@ class Monitor:
     heard: dict[int, tuple[int, int]] = field(default_factory=dict)  # agent -> (watermark, seq)
     out: dict[int, int] = field(default_factory=dict)  # agent -> the life that ended (until a Hello)
     lives: dict[int, int] = field(default_factory=dict)  # agent -> its life now (what a notice ends)
-    asking: dict[int, int] = field(default_factory=dict)  # agent -> the life it asked for (Hello)
     wanted: set[int] = field(default_factory=set)
     dead: set[int] = field(default_factory=set)  # declared for good (their lives end as they come)
     declared: list[Declaration] = field(default_factory=list)
@@ -68,25 +67,21 @@ class Monitor:
         """Anything a robot broadcast: its watermark, a stamp someone will wait for, a Hello, a
         Back. Returns the Marks to send."""
         if isinstance(payload, Envelope):
-            self._watermark(payload.sender, payload.implied, payload.seq)
+            self.note(payload.sender, payload.implied, payload.seq)
             if isinstance(payload.message, Back):
                 b = payload.message
                 self.lives[b.agent] = max(self.lives.get(b.agent, 0), b.incarnation)
             if bool(getattr(payload.message, "SHARED", True)):
                 self.wanted.add(payload.stamp)
         elif isinstance(payload, Mark):
-            self._watermark(payload.sender, payload.watermark, payload.seq)
+            self.note(payload.sender, payload.watermark, payload.seq)
         elif isinstance(payload, Need):
-            self._watermark(payload.sender, payload.watermark, payload.seq)
+            self.note(payload.sender, payload.watermark, payload.seq)
             self.wanted.add(payload.stamp)
         elif isinstance(payload, Hello) and payload.incarnation > self.out.get(payload.sender, 1 << 30):
             # it may be a member again from any Back's stamp on: wait for its watermark
             del self.out[payload.sender]
-            self.asking[payload.sender] = payload.incarnation
         return self.tick(now)
-
-    def _watermark(self, agent: int, watermark: int, seq: int) -> None:
-        self.note(agent, watermark, seq)
 
     def note(self, agent: int, watermark: int, seq: int) -> None:
         """Robot ``agent`` has passed ``watermark`` with ``seq`` messages sent (a node that must
@@ -145,5 +140,4 @@ class Monitor:
         self.declared.append(d)
         self.wanted.add(d.stamp)  # every member will need that batch: say when it is passed
         self.out[agent] = life
-        self.asking.pop(agent, None)
         return d
