@@ -107,8 +107,8 @@ class Knowledge:
         while changed:  # a kept task keeps every earlier task of each of its members
             changed = False
             for mine in own.values():
-                last = max((k for k, pos in enumerate(mine) if pos in kept), default=-1)
-                for pos in mine[:last]:
+                last = max((k for k, pos in enumerate(mine) if pos in kept), default=0)
+                for pos in mine[:last]:  # (none kept: none before it either)
                     if pos not in kept:
                         kept.add(pos)
                         changed = True
