@@ -12,6 +12,7 @@ from pathlib import Path
 from ost_ros import protocols
 from ost_ros.bounds import lower_bound
 from ost_ros.commands.args import add_workers, at_least, executor, leaf, load_scenario_arg, resumed
+from ost_ros.commands.realtime import latency
 from ost_ros.errors import UsageError
 from ost_ros.optimal import optimal_schedule, post_search_problem, search_space_order
 
@@ -79,6 +80,13 @@ def register(sub) -> None:
         "--quick", action="store_true", help="N in 10, 50 and M in 10, 50, 3 object sets (about 20 s)"
     )
     p.add_argument("--sets", type=at_least(2), help="object sets per (N, M) (default 10; quick 3)")
+    p.add_argument(
+        "--latency",
+        type=latency,
+        metavar="L[:J]",
+        help="also run every protocol and planner that runs without a barrier so, at latency L + "
+        "U[0, J] steps (ost sim --latency): the realtime rows beside the lockstep ones",
+    )
     add_workers(p)
 
 
@@ -100,7 +108,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     out = out_dir(args.out)
     tasks = grid(args.quick, args.sets)
     with executor(args) as ex:
-        rows, outcome = run_all(tasks, ex, out, args.progress)
+        rows, outcome = run_all(tasks, ex, out, args.progress, args.latency)
     files = write_all(rows, outcome.timing, out)
     outcome.finish()
     print(

@@ -6,6 +6,11 @@ and CI = M), and CCP with the improved planner at both. Per (variant, N, M): mea
 (Student t over the object sets), mean ratio to the lower bound, protocol messages per object,
 CPU seconds per run (the in-process run: planning and the engine). Every statement of the
 report is computed from these rows.
+
+``latency`` (``ost compare --latency L[:J]``): every variant that runs without a barrier also runs
+so (:mod:`ost_ros.realtime`, in process, the latency model seeded by the object set's seed): rows
+labelled ``… L=L:J``, the report's table, findings and figures gaining them. A realtime run with a
+disagreement, or one that does not deliver every object, stops the study (as any failed run).
 """
 
 from __future__ import annotations
@@ -37,32 +42,50 @@ class Variant:
     protocol: str
     ci: str = ""  # "1", "M" or "" (no triggers)
     planner: str = "paper"
+    latency: tuple[float, float] | None = None  # without a barrier, at latency L + U[0, J]
 
     @property
     def label(self) -> str:
         name = self.protocol.upper() + (f" CI={self.ci}" if self.ci else "")
-        return name + (" improved" if self.planner != "paper" else "")
+        name += " improved" if self.planner != "paper" else ""
+        return name + (f" L={self.latency[0]:g}:{self.latency[1]:g}" if self.latency else "")
+
+    @property
+    def lockstep(self) -> str:
+        """The label of the same variant run in lockstep."""
+        return Variant(self.protocol, self.ci, self.planner).label
 
     def run(self, task: Task):
         scenario = scenario_of(task)
-        if not self.ci:
-            return simulate(scenario, self.protocol, engine="event")
-        ci = task.objects if self.ci == "M" else int(self.ci)
-        settings = protocols.settings_from(self.protocol, {"planner": self.planner})
-        return simulate(
-            scenario, self.protocol, CoordinationPolicy(ci=max(ci, 1)), engine="event", settings=settings
-        )
+        ci = task.objects if self.ci == "M" else int(self.ci or 1)
+        policy = CoordinationPolicy(ci=max(ci, 1)) if self.ci else None
+        settings = protocols.settings_from(self.protocol, {"planner": self.planner}) if self.ci else None
+        if self.latency is not None:
+            from ost_ros.realtime.net import Latency
+            from ost_ros.realtime.run import run_realtime
+
+            r, rep = run_realtime(
+                scenario, self.protocol, policy, settings, latency=Latency(*self.latency), seed=task.seed
+            )
+            if rep.disagreements:
+                raise RuntimeError(f"{self.label}: {rep.disagreements} disagreements")
+            return r
+        return simulate(scenario, self.protocol, policy, engine="event", settings=settings)
 
 
-def variants() -> list[Variant]:
+def variants(latency: tuple[float, float] | None = None) -> list[Variant]:
     """Every protocol of the registry; those with triggers at CI = 1 and CI = M; CCP with each
-    planner."""
+    planner; with ``latency``, also each of them that runs without a barrier, so."""
+    from ost_ros.realtime.run import REALTIME
+
     out: list[Variant] = []
     for spec in protocols.REGISTRY.values():
         planners = [o for o in spec.options if o.name == "planner"]
         names = ("paper", "improved") if planners else ("paper",)
         cis = ("1", "M") if spec.capabilities.triggers else ("",)
         out.extend(Variant(spec.name, ci, p) for p in names for ci in cis)
+    if latency is not None:
+        out += [Variant(v.protocol, v.ci, v.planner, latency) for v in list(out) if v.protocol in REALTIME]
     return out
 
 
@@ -123,21 +146,28 @@ def run(spec: Run) -> Row:
 
 
 def weight(spec: Run) -> float:
-    """Rough relative cost: stepped protocols and the improved planner grow with N·M."""
-    heavy = protocols.get(spec.variant.protocol).team_comm is None or spec.variant.planner != "paper"
-    return (1 + spec.task.objects) * (spec.task.agents if heavy else 2)
+    """Rough relative cost: stepped protocols and the improved planner grow with N·M; a run
+    without a barrier runs every robot's comm (N times the work)."""
+    v = spec.variant
+    heavy = protocols.get(v.protocol).team_comm is None or v.planner != "paper"
+    n = spec.task.agents
+    return (1 + spec.task.objects) * (n if heavy else 2) * (n if v.latency else 1)
 
 
-def study(tasks: list[Task]) -> Study[Run, Row]:
+def study(tasks: list[Task], latency: tuple[float, float] | None = None) -> Study[Run, Row]:
     """Every variant on every task, the tasks in the given order (heaviest first)."""
-    return Study("compare", [Run(t, v) for t in tasks for v in variants()], run, weight, Row)
+    return Study("compare", [Run(t, v) for t in tasks for v in variants(latency)], run, weight, Row)
 
 
 def run_all(
-    tasks: list[Task], executor: Executor, out: Path | None = None, progress: bool | None = None
+    tasks: list[Task],
+    executor: Executor,
+    out: Path | None = None,
+    progress: bool | None = None,
+    latency: tuple[float, float] | None = None,
 ) -> tuple[list[Row], Outcome[Row]]:
     """Every variant on every task: the rows sorted as runs.csv lists them, and the outcome."""
-    outcome = run_study(study(tasks), executor, out, progress)
+    outcome = run_study(study(tasks, latency), executor, out, progress)
     return sorted(outcome.rows, key=lambda r: (r.agents, r.objects, r.variant, r.set)), outcome
 
 
@@ -229,6 +259,19 @@ def findings(rows: list[Row], cells: list[Cell]) -> list[str]:
                 f"CPU per run {statistics.mean(x.cpu_s for _, x in pairs):.2f} s against "
                 f"{statistics.mean(a.cpu_s for a, _ in pairs):.2f} s."
             )
+    # each variant without a barrier against itself in lockstep, run by run
+    for v in sorted({r.variant for r in rows if " L=" in r.variant}):
+        base = v.split(" L=")[0]
+        change = [
+            100 * (by_key[(v, n, m, s)].makespan / r.makespan - 1)
+            for (w, n, m, s), r in by_key.items()
+            if w == base and (v, n, m, s) in by_key
+        ]
+        if change:
+            out.append(
+                f"{v} (no barrier) vs {base} in lockstep: mean {statistics.mean(change):+.1f} % over "
+                f"{len(change)} runs (range {min(change):+.1f} … {max(change):+.1f} %), 0 disagreements."
+            )
     msgs: dict[str, list[float]] = {c.variant: [] for c in cells}
     for c in cells:
         msgs[c.variant].append(c.messages_per_object)
@@ -266,7 +309,7 @@ def plot(cells: list[Cell], out: Path) -> list[str]:
                 marker="os^vD<>p*h"[k % 10],
                 capsize=3,
                 label=v,
-                linestyle="--" if "improved" in v else "-",
+                linestyle=":" if " L=" in v else "--" if "improved" in v else "-",
             )
         ax.set_xscale("log")
         ax.set_xticks(
@@ -296,6 +339,16 @@ def report(rows: list[Row], cells: list[Cell], timing: Timing, figures: list[str
         f"{timing.executor or f'{timing.workers} workers'}, load {timing.load:.1f} at the end.",
         f"- Reference: {PAPER} (the paper's protocol at its own trigger). Intervals: 95 %, Student t "
         "over the object sets. CPU: seconds per in-process run (planning and the engine).",
+    ]
+    realtime = sorted({r.variant for r in rows if " L=" in r.variant})
+    if realtime:
+        lat = realtime[0].split(" L=")[1]
+        lines.append(
+            f"- Rows `… L={lat}`: the same variant without a barrier (`ost sim --latency {lat}`: every "
+            "robot its own runtime, latency L + U[0, J] steps per message, seeded by the object "
+            "set), for every protocol that runs so; HCP does not (docs/realtime.md)."
+        )
+    lines += [
         "",
         "## Findings",
         "",

@@ -47,3 +47,19 @@ def test_compare_writes_a_report_computed_from_its_runs(tmp_path):
     report = (tmp_path / "report.md").read_text()
     assert "| 10 | 10 |" in report and "![compare_N10.png](compare_N10.png)" in report
     assert len((tmp_path / "runs.csv").read_text().splitlines()) == 1 + len(rows)
+
+
+def test_compare_with_latency_adds_every_protocol_that_runs_without_a_barrier(tmp_path):
+    """``ost compare --latency L:J``: each variant that runs without a barrier also runs so (HCP
+    does not); the findings give each one's cost against itself in lockstep."""
+    from ost_ros.realtime.run import REALTIME
+
+    rows, outcome = run_all(tasks()[:1], Executor(), progress=False, latency=(3.0, 2.0))
+    labels = {r.variant for r in rows}
+    realtime = {v for v in labels if v.endswith(" L=3:2")}
+    assert {v.split(" L=")[0] for v in realtime} == {v.label for v in variants() if v.protocol in REALTIME}
+    assert not any(v.startswith("HCP L=") for v in labels)
+    text = "\n".join(findings(rows, summarise(rows)))
+    assert "CCP CI=1 improved L=3:2 (no barrier) vs CCP CI=1 improved in lockstep" in text
+    write_all(rows, outcome.timing, tmp_path)
+    assert "`ost sim --latency 3:2`" in (tmp_path / "report.md").read_text()
