@@ -28,6 +28,7 @@ from pathlib import Path
 
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.model import Grid
+from ost_ros.protocols.ccp import CcpSettings
 from ost_ros.realtime.net import Latency, Split
 from ost_ros.realtime.run import run_realtime
 from ost_ros.scenario import generate_scenario
@@ -39,10 +40,15 @@ def random_case(seed: int):
     n, m = rnd.randint(2, 6), rnd.randint(0, 7)
     grid = Grid(rnd.randint(max(4, n), 30), rnd.randint(max(3, n), 20))  # (room for n search areas)
     s = generate_scenario(n, m, seed, grid, nmax=min(n, 3))
-    protocol = rnd.choice(["ccp", "ccp", "ccp-coordinator", "ncp", "auction"])
+    protocol = rnd.choice(["ccp", "ccp", "ccp-coordinator", "ncp", "auction", "ccp-improved", "greedy"])
     policy = CoordinationPolicy(ci=rnd.choice([1, 2, 5]))
+    settings = None
     if protocol == "ccp-coordinator":
         protocol, policy = "ccp", dataclasses.replace(policy, organisation="coordinator")
+    if protocol == "ccp-improved":
+        organisation = rnd.choice(["distributed", "coordinator"])
+        protocol, policy = "ccp", dataclasses.replace(policy, organisation=organisation)
+        settings = CcpSettings(planner="improved")
     if protocol == "auction":
         policy = CoordinationPolicy()
     ids = [a.id for a in s.agents]
@@ -60,6 +66,7 @@ def random_case(seed: int):
         elif kind == "join":
             joins[a] = float(rnd.randint(1, 300))
     kw = {
+        "settings": settings,
         "latency": Latency(rnd.randint(0, 50), rnd.randint(0, 50)),
         "seed": rnd.randint(0, 10**6),
         "speed_jitter": rnd.choice([0.0, 0.3]),

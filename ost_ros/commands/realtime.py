@@ -97,7 +97,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         type=latency,
         metavar="L[:J]",
         help="run without a barrier: every message takes L steps plus up to J more (seeded, per "
-        "receiver); 0 gives ost sim's result (protocols: ccp with the paper's planner, ncp, auction)",
+        "receiver); 0 gives ost sim's result (protocols: ccp with either planner, ncp, auction, greedy)",
     )
     g.add_argument("--latency-seed", type=int, default=None, metavar="S", help="seed of the delays (0)")
     g.add_argument(

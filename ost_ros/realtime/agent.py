@@ -209,6 +209,11 @@ class RealtimeAgent:
     _keep: int = 0  # own schedule entries done or under way when a failure was learnt
     _status_due: bool = False  # a failure was learnt: its status goes out at the next decision
     _commit_at: float | None = None  # a time to commit once the decision asked for is taken
+    # CCP's improved planner: the batch a carry waits to be known (_frozen), open_entries cached
+    _gate: int | None = None
+    _gated_at: int = -1  # the step of the decision the gate holds (it commits below it meanwhile)
+    _asked_for: Assignment | None = None  # the task it asked ahead for (_ask_ahead)
+    _open: tuple[tuple[int, ...], dict[int, frozenset[int]]] = ((), {})
     _event: int | None = None  # the comm's next event after the last batch (cached)
     _event_for: int = -2
     # Membership: declared out (a notice of it taken), its life now, the Hello it sent (the
@@ -404,6 +409,7 @@ class RealtimeAgent:
             self._send(m, fb.time)
         self._follow_action(action, fb)
         self._decide_at(s + 1, now)
+        self._ask_ahead()
 
     def _sync(self, fb: Feedback, s: int) -> None:
         a = self.agent
@@ -455,7 +461,82 @@ class RealtimeAgent:
         if task.object == self._blocked:
             self._goal(Stand(state), fb)  # its group has lost a member: wait for the comm
             return
+        if not self._frozen(task):
+            self._goal(Stand(state), fb)  # a re-plan may still move it: wait for the comm
+            return
         self._goal(Carry(task.object, tuple(task.agents), state), fb)
+
+    def _frozen(self, task: Assignment) -> bool:
+        """Whether no re-plan of a batch it has not taken yet can move ``task`` (always true but
+        for CCP's improved planner). A re-plan in batch t moves only what no member can have
+        taken up by step t + 1 (:meth:`Knowledge.open_entries`), and what is kept for a step is
+        kept for every later one: so the task is safe to hold for once every batch up to s* − 2
+        is known — taken, or complete and empty with no comm event — where s* is the first step
+        a plan keeps it for. A robot may walk to an object before that (nobody sees
+        a walk), never hold or carry it: a lagging robot never holds for a group that a re-plan
+        it has not read yet dissolved. Until then it asks for those batches (a :class:`Need`)
+        and decides again once they are in (:meth:`_flush`)."""
+        self._gate = None
+        u = self._settles(task)
+        if u is None or u <= self.batches.done or self._known(u):
+            return u is not None
+        # (its commit stays below this step meanwhile — unless the gate needs this step itself)
+        self._gate, self._gated_at = u, (self.agent.t if u < self.agent.t - 1 else -1)
+        return False
+
+    def _settles(self, task: Assignment) -> int | None:
+        """The last batch that can still re-plan ``task`` (−1: none; None: it is re-planned
+        away already, its batch's resync on the way)."""
+        comm = self.comm
+        if getattr(comm, "planner", "paper") != "improved":
+            return -1
+        k = comm.knowledge
+        pos = next((p for p, e in enumerate(k.schedule) if e is task), None)
+        if pos is None:
+            return None
+        done = self.batches.done
+        lo, hi = done + 2, max(done + 2, task.start)
+        while lo < hi:  # the first step a plan keeps it for (a plan for its start does)
+            mid = (lo + hi) // 2
+            if pos in self._open_at(mid):
+                lo = mid + 1
+            else:
+                hi = mid
+        return lo - 2
+
+    def _ask_ahead(self) -> None:
+        """Taking up a task it will hold or carry, it asks now for the batches that settle it
+        (:meth:`_frozen`): peers announce their watermarks as their clocks pass it, so on its
+        arrival the gate is open, not a round trip away."""
+        task = self.agent.current
+        if task is None or self._asked_for is task:
+            return
+        self._asked_for = task
+        u = self._settles(task)
+        if u is None or u <= self.batches.done:
+            return
+        nxt = self._next_batch()
+        if (nxt is None or nxt > u) and not self.batches.complete(u):
+            need = self.batches.ask(u)
+            if need is not None:
+                self._out.append(Publish(need))
+
+    def _open_at(self, s: int) -> frozenset[int]:
+        k, comm = self.comm.knowledge, self.comm
+        key = (len(k.schedule), k.coordinations, comm.losses, comm.joins, k.base_len)
+        if self._open[0] != key:
+            self._open = (key, {})
+        cache = self._open[1]
+        if s not in cache:
+            cache[s] = frozenset(k.open_entries(s))
+        return cache[s]
+
+    def _known(self, u: int) -> bool:
+        """Every batch up to stamp u is taken, or complete with nothing in it for the comm."""
+        if u <= self.batches.done:
+            return True
+        nxt = self._next_batch()
+        return (nxt is None or nxt > u) and self.batches.complete(u)
 
     def _goal(
         self, goal: Goal, fb: Feedback, sweep: tuple[Sequence[Cell], int] | None = None, force: bool = False
@@ -540,6 +621,22 @@ class RealtimeAgent:
             if a.state is not GlobalState.SEARCHING:
                 a.state = GlobalState.DECISION
 
+    def _replanned(self) -> None:
+        """CCP's improved planner moved entries nobody can have taken up: what it carried is
+        kept (:meth:`_frozen`), so its task list is its part of the schedule after what it has
+        taken up — unless the task it was walking to went to the new plan: it lets it go."""
+        a, comm = self.agent, self.comm
+        comm.replanned = False
+        sched = comm.knowledge.schedule
+        if a.current is not None and not any(e is a.current for e in sched):
+            a.current = None
+            a._taken -= 1
+            if a.state is not GlobalState.SEARCHING:
+                a.state = GlobalState.DECISION
+        a.tasks.clear()
+        a.tasks.extend(a._own()[a._taken :])
+        a._seen_schedule = len(sched)
+
     # ------------------------------------------------------------------ membership
 
     def _declared_out(self, now: float) -> None:
@@ -595,7 +692,7 @@ class RealtimeAgent:
         a.current, a.sweep_task = None, None
         # what is left of its old life in the schedule is done or under way by others: counted as
         # taken (its status's ``keep`` counts its entries from the first)
-        a._seen_schedule = self.comm.rejoin_len[self.id]  # (the batch may have planned for it)
+        a._seen_schedule = self.comm.rejoin_len(self.id)  # (the batch may have planned for it)
         a._taken = sum(1 for e in k.schedule[: a._seen_schedule] if self.id in e.agents)
         a.search.state = SearchState.DONE
         a.state = GlobalState.DECISION
@@ -632,7 +729,15 @@ class RealtimeAgent:
         if self._asked:
             self._commit_at = now if self._commit_at is None else max(self._commit_at, now)
             return
-        self._marks(self.speaker.commit(math.floor(now + EPS)), now)
+        self._marks(self.speaker.commit(self._capped(math.floor(now + EPS))), now)
+
+    def _capped(self, t: int) -> int:
+        """A carry gated in step s (:meth:`_frozen`) is decided again in s once the gate opens:
+        the decision of s may still change, so it commits below s meanwhile (as in lockstep, its
+        step s comes before anything stamped s); past step s, the decision of s stands."""
+        if self._gate is not None and t <= self._gated_at:
+            return self._gated_at - 1
+        return t
 
     def _wake(self, t: float) -> None:
         if t not in self._wakes:
@@ -690,12 +795,37 @@ class RealtimeAgent:
         if comm.recovered:
             comm.recovered = False
             self._resync()
+        if getattr(comm, "replanned", False):
+            self._replanned()
         if self._hellos:
             self._sponsor(now)
         a = self.agent
         if a.state in (GlobalState.RETURNING, GlobalState.FINISH) and a.current is None and a._unread():
             a.state = GlobalState.DECISION  # called back: a robot came back, and with it work
         self._decide_at(math.floor(now + EPS) + 1, now)
+
+    def _ungate(self, now: float) -> None:
+        """A carry waits for the batches up to its gate (:meth:`_frozen`): once they are known,
+        decide again; until then ask for them."""
+        u = self._gate
+        if u is None:
+            return
+        if not self._known(u):
+            nxt = self._next_batch()
+            if nxt is not None and nxt <= u:
+                return  # a batch before it is under way (the pump asks for it)
+            if not self._asked:  # its own watermark first (nothing else may wake it to commit it)
+                self._marks(self.speaker.commit(self._capped(math.floor(now + EPS))), now)
+            if not self._known(u):
+                if self.speaker.committed >= u:
+                    need = self.batches.ask(u)
+                    if need is not None:
+                        self._out.append(Publish(need))
+                return
+        self._gate = None
+        self._decided = -1.0
+        self._decide_at(now, now)
+        self._wake(now)  # to commit this step once that decision and its base's events are in
 
     def _schedule_view(self) -> str | None:
         """The shared view (schedule and pool) if it may have changed since the last one, else
@@ -713,6 +843,7 @@ class RealtimeAgent:
         not while a decision asked for is still to come: the body acts before the comm moves on."""
         if not self._asked:
             self._pump(now)
+            self._ungate(now)
         out, self._out = self._out, []
         return _fold_marks(out)
 

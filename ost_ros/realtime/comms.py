@@ -31,6 +31,7 @@ import numpy as np
 from ost_ros.model import Cell, moves_between
 from ost_ros.protocols.auction.comm import Auction, AuctionComm
 from ost_ros.protocols.ccp.comm import CcpComm, CommState
+from ost_ros.protocols.greedy.comm import GreedyComm
 from ost_ros.protocols.ncp.comm import NcpComm
 from ost_ros.protocols.shared.knowledge import Knowledge
 from ost_ros.protocols.shared.recovery import Sweep
@@ -82,7 +83,9 @@ class RtRecovery:
         self._last_loss = -1  # the stamp of the last notice taken in
         self.incarnation: dict[int, int] = {}  # agent -> its life now (0 unless it came back)
         self.rejoined: dict[int, int] = {}  # agent -> the stamp of its last Back
-        self.rejoin_len: dict[int, int] = {}  # agent -> the schedule's length when it came back
+        # agent -> the schedule's entries when it came back (what is left of them later is what
+        # it found planned: a re-plan or a recovery in the same batch drops and appends entries)
+        self.rejoin_old: dict[int, list] = {}
         self.joins = 0  # rejoins taken in
         super()._init_recovery()  # type: ignore[misc]
 
@@ -100,6 +103,12 @@ class RtRecovery:
 
     def _statuses_in(self) -> bool:
         return all(j in self.statuses for j in self.alive if not self._exempt(j))
+
+    def rejoin_len(self, j: int) -> int:
+        """How many entries at the head of the schedule were planned before robot j came back
+        (kept entries keep their order and everything planned since comes after them)."""
+        old = {id(e) for e in self.rejoin_old.get(j, ())}  # (alive: the list holds them)
+        return sum(1 for e in self.knowledge.schedule if id(e) in old)
 
     def _exempt(self, j: int) -> bool:
         """A robot back since the recovery under way began: it has nothing of the schedule to
@@ -143,7 +152,7 @@ class RtRecovery:
         self._alive = None
         self.incarnation[j] = msg.incarnation
         self.rejoined[j] = t
-        self.rejoin_len[j] = len(self.knowledge.schedule)  # what it finds planned (not its own)
+        self.rejoin_old[j] = list(self.knowledge.schedule)  # what it finds planned (not its own)
         self.joins += 1
         k, i = self.knowledge, self.team.index(j)
         self.owed[j] = 0
@@ -299,18 +308,18 @@ class RtRecovery:
 
 def _remainder(sw: Sweep, t: int, period: int, at: Cell | None) -> tuple[Cell, ...]:
     """The cells of ``sw`` its robot, failed with its counted sensing ending at cell ``at``
-    (at step t), may not have reported: from ``at`` on. A robot is never ahead of its sweep's
-    prediction, so of several visits of ``at`` the last one not past the predicted index is it."""
+    (at step t), may not have reported: from ``at`` on. Of several visits of ``at`` the first:
+    a robot is never ahead of its sweep's prediction, but it may be far behind it (it came back
+    from out with the sweep given to it at its readmission, taken up much later than planned),
+    so only the first visit is sure not to skip cells it never sensed."""
     path = sw.path
     guess = moves_between(sw.start, t, period) if t > sw.start else 0
     if at is None:
         i = guess
     else:
-        hits = [i for i, c in enumerate(path) if c == at]
-        if not hits:
+        i = next((i for i, c in enumerate(path) if c == at), -1)
+        if i < 0:
             return tuple(path[sw.walk :])
-        before = [i for i in hits if i <= guess]
-        i = before[-1] if before else hits[0]
     return tuple(path[max(min(i, len(path) - 1), sw.walk) :])
 
 
@@ -386,6 +395,25 @@ class RtCcpComm(RtRecovery, CcpComm):
         if c not in self._selections and c in self._all_selections:
             self._selections[c] = self._all_selections[c]  # an old one: looked up again
         super()._check_selection(msg)
+
+
+@dataclass
+class RtGreedyComm(RtRecovery, GreedyComm):
+    """Greedy dispatch without a barrier. The dispatch is a function of public knowledge (the
+    finds, the search ends, the schedule it has dispatched, the statuses after a failure), so
+    taken batch by batch it is the same on every robot; a quiet step it acts in (a robot's
+    predicted delivery frees it for the queue's head) is a comm event (:meth:`next_event`),
+    stamped like a batch. "Free" is the schedule's prediction, as in lockstep: a robot late on
+    it is dispatched all the same and its group waits for it — every robot executes its
+    entries in the one global order, so nobody holds forever."""
+
+    def receive(self, t: int, messages: Sequence[AgentMessage]) -> None:
+        super().receive(t, self._enter(t, messages))
+
+    def next_event(self, t: int) -> int | None:
+        if self._recovering is not None:
+            return None  # statuses: it waits for messages
+        return super().next_event(t)
 
 
 @dataclass

@@ -31,7 +31,7 @@ from ost_ros.realtime.agent import (
     WakeAt,
 )
 from ost_ros.realtime.base import BaseMirror, mirror_of
-from ost_ros.realtime.comms import RtAuctionComm, RtCcpComm, RtNcpComm
+from ost_ros.realtime.comms import RtAuctionComm, RtCcpComm, RtGreedyComm, RtNcpComm
 from ost_ros.realtime.membership import MONITOR, Monitor
 from ost_ros.realtime.messages import Back, Digest, Envelope, Mark, Need, ObjectInfo
 from ost_ros.realtime.net import DELIVER, KILL, WAKE, WORLD, EventQueue, Latency, Network, Split
@@ -40,15 +40,12 @@ from ost_ros.result import RunResult
 from ost_ros.team import TeamInfo
 from ost_ros.world import World
 
-REALTIME = ("ccp", "ncp", "auction")
+REALTIME = ("ccp", "ncp", "auction", "greedy")
 # Why the others do not run without a barrier (docs/realtime.md, "What each protocol guarantees").
 REFUSED = {
     "hcp": "hcp does not run without a barrier: its requesters withdraw and ask again by what they "
     "see when, so a request staffed in a batch its requester has not read yet leaves helpers "
     "holding forever (no stamp rule fixes a decision taken on a stale view)",
-    "improved": "--planner improved does not run without a barrier: it re-plans work no robot has "
-    "taken up by predicted times, and a late robot may have taken it up already (a carry "
-    "started with the old group)",
 }
 
 
@@ -58,8 +55,6 @@ def check_realtime(protocol: str, policy: CoordinationPolicy | None = None, sett
     check(protocol, policy=policy)
     if protocol in REFUSED:
         raise ProtocolError(REFUSED[protocol])
-    if protocol == "ccp" and getattr(settings, "planner", "paper") != "paper":
-        raise ProtocolError(REFUSED["improved"])
     if protocol not in REALTIME:
         raise ProtocolError(f"{protocol} has no realtime runtime (realtime: {', '.join(REALTIME)})")
 
@@ -83,9 +78,11 @@ def make_agent(
     monitor: bool = False,
 ) -> RealtimeAgent:
     """One robot's realtime runtime (an agent node builds its own; the protocol already checked)."""
-    comm: RtCcpComm | RtNcpComm | RtAuctionComm
-    if protocol == "ccp":
-        comm = RtCcpComm(agent_id, team, policy)
+    comm: RtCcpComm | RtNcpComm | RtAuctionComm | RtGreedyComm
+    if protocol == "greedy":
+        comm = RtGreedyComm(agent_id, team, policy)
+    elif protocol == "ccp":
+        comm = RtCcpComm(agent_id, team, policy, planner=getattr(settings, "planner", "paper"))
     elif protocol == "ncp":
         comm = RtNcpComm(agent_id, team, policy, settings=settings or NegotiationSettings())
     else:

@@ -50,12 +50,13 @@ def splits(draw, s):
 @given(data=st.data())
 def test_robots_declared_out_come_back_and_joiners_are_used_and_all_agree(data):
     """(1 000 runs of the same mix: benchmarks/bench_membership.py, figures in docs/realtime.md)"""
-    s, protocol, policy = data.draw(teams(agents=(2, 6)))
+    s, protocol, policy, how = data.draw(teams(agents=(2, 6)))
     kills, silences, joins = data.draw(faults(s))
     r, report = run_realtime(
         s,
         protocol,
         policy,
+        how,
         latency=Latency(data.draw(st.integers(0, 50)), data.draw(st.integers(0, 50))),
         seed=data.draw(st.integers(0, 10**6)),
         speed_jitter=data.draw(st.sampled_from([0.0, 0.3])),

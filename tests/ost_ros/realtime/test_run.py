@@ -15,6 +15,7 @@ from ost_ros.engines import simulate, step_limit
 from ost_ros.model import Grid, ObjectSpec, manhattan
 from ost_ros.negotiation.slots import NegotiationSettings
 from ost_ros.protocols import ProtocolError
+from ost_ros.protocols.ccp import CcpSettings
 from ost_ros.protocols.ncp import SPEC as NCP
 from ost_ros.realtime import run as rt
 from ost_ros.realtime.net import Latency, Network
@@ -25,18 +26,24 @@ from tests.strategies import policies, scenarios
 
 @st.composite
 def teams(draw, agents=(1, 6), objects=(0, 7)):
-    """A small scenario, sometimes with slower robots, and a protocol that runs without a barrier."""
+    """A small scenario, sometimes with slower robots, a protocol that runs without a barrier and
+    its settings (CCP's planner)."""
     s = draw(scenarios(agents=agents, objects=objects))
     if draw(st.booleans()):
         agents = [dataclasses.replace(a, period=draw(st.sampled_from([1, 1, 2, 3]))) for a in s.agents]
         s = build_scenario(s.grid, s.objects, partition=s.partition, agents=agents, nmax=s.nmax)
-    protocol = draw(st.sampled_from(["ccp", "ccp-coordinator", "ncp", "auction"]))
+    protocol = draw(st.sampled_from(["ccp", "ccp-coordinator", "ccp-improved", "ncp", "auction", "greedy"]))
     policy = draw(policies)
+    settings = None
     if protocol == "ccp-coordinator":
         protocol, policy = "ccp", dataclasses.replace(policy, organisation="coordinator")
+    if protocol == "ccp-improved":
+        organisation = draw(st.sampled_from(["distributed", "coordinator"]))
+        protocol, policy = "ccp", dataclasses.replace(policy, organisation=organisation)
+        settings = CcpSettings(planner="improved")
     if protocol == "auction":
         policy = CoordinationPolicy()
-    return s, protocol, policy
+    return s, protocol, policy, settings
 
 
 @st.composite
@@ -67,13 +74,13 @@ def check_run(s, r, report, dead):
 @settings(max_examples=300, deadline=None)
 @given(data=st.data())
 def test_at_latency_zero_the_run_is_the_step_engines(data):
-    s, protocol, policy = data.draw(teams())
+    s, protocol, policy, how = data.draw(teams())
     dead = data.draw(failures(s, horizon=data.draw(st.sampled_from([8, 60]))))
     if dead and data.draw(st.booleans()):  # near the end, when robots are finishing
-        end = simulate(s, protocol, policy, engine="step").makespan or 0
+        end = simulate(s, protocol, policy, engine="step", settings=how).makespan or 0
         dead = {a: max(0, end - data.draw(st.integers(0, 6))) for a in dead}
-    ref = simulate(s, protocol, policy, engine="step", failures=dead)
-    r, report = run_realtime(s, protocol, policy, failures=dead)
+    ref = simulate(s, protocol, policy, engine="step", settings=how, failures=dead)
+    r, report = run_realtime(s, protocol, policy, how, failures=dead)
     assert r.to_dict() == ref.to_dict()
     assert report.disagreements == 0 and all(lag == 0 for lag in report.lag.values())
 
@@ -81,7 +88,7 @@ def test_at_latency_zero_the_run_is_the_step_engines(data):
 @settings(max_examples=1000, deadline=None)
 @given(data=st.data())
 def test_without_a_barrier_every_object_is_carried_by_its_group_and_all_agree(data):
-    s, protocol, policy = data.draw(teams())
+    s, protocol, policy, how = data.draw(teams())
     dead = data.draw(failures(s, horizon=200))
     latency = Latency(data.draw(st.integers(0, 50)), data.draw(st.integers(0, 50)))
     stalls = data.draw(
@@ -94,6 +101,7 @@ def test_without_a_barrier_every_object_is_carried_by_its_group_and_all_agree(da
         s,
         protocol,
         policy,
+        how,
         latency=latency,
         seed=data.draw(st.integers(0, 10**6)),
         speed_jitter=data.draw(st.sampled_from([0.0, 0.0, 0.3, 1.0])),
@@ -117,12 +125,13 @@ def test_robots_that_know_their_bases_late_and_failures_declared_late_keep_every
     (it commits no later, so its stamps run ahead of its watermark), and a dead robot is declared
     ``declare_after`` steps after it died while its base moves on (its counted sensing ends at its
     last watermark, not where its base went)."""
-    s, protocol, policy = data.draw(teams())
+    s, protocol, policy, how = data.draw(teams())
     dead = data.draw(failures(s, horizon=300))
     r, report = run_realtime(
         s,
         protocol,
         policy,
+        how,
         latency=Latency(data.draw(st.integers(0, 30)), data.draw(st.integers(0, 30))),
         seed=data.draw(st.integers(0, 10**6)),
         speed_jitter=data.draw(st.sampled_from([0.0, 0.3])),
@@ -152,9 +161,9 @@ def test_a_robot_declared_late_leaves_no_unreported_find_behind(when):
 @settings(max_examples=40, deadline=None)
 @given(teams(agents=(2, 6), objects=(1, 7)), st.integers(0, 10**6))
 def test_more_latency_and_reordering_never_break_agreement(team, seed):
-    s, protocol, policy = team
+    s, protocol, policy, how = team
     for latency in (Latency(1, 0), Latency(3, 9), Latency(20, 40), Latency(50, 50)):
-        r, report = run_realtime(s, protocol, policy, latency=latency, seed=seed)
+        r, report = run_realtime(s, protocol, policy, how, latency=latency, seed=seed)
         check_run(s, r, report, {})
 
 
@@ -235,28 +244,23 @@ def test_a_network_that_loses_messages_ends_in_a_reported_deadlock(monkeypatch):
     assert not r.completed and r.error is not None and "deadlock" in r.error
 
 
-@pytest.mark.parametrize(
-    ("protocol", "settings", "why"),
-    [("hcp", None, "hcp does not run without a barrier"), ("ccp", "improved", "--planner improved")],
-)
-def test_protocols_that_cannot_agree_without_a_barrier_are_refused(protocol, settings, why):
-    from ost_ros.protocols.ccp import CcpSettings
-
+def test_protocols_that_cannot_agree_without_a_barrier_are_refused():
     s = build_scenario(Grid(12, 3), [ObjectSpec(0, (1, 1), (11, 2), 1)], n_agents=2, nmax=1)
-    with pytest.raises(ProtocolError, match=why):
-        run_realtime(s, protocol, settings=CcpSettings(settings) if settings else None)
-    assert rt.REALTIME == ("ccp", "ncp", "auction")
+    with pytest.raises(ProtocolError, match="hcp does not run without a barrier"):
+        run_realtime(s, "hcp")
+    assert rt.REALTIME == ("ccp", "ncp", "auction", "greedy")
 
 
-def test_a_robot_that_is_never_ahead_of_its_sweep_is_found_where_it_was():
-    # remainder of a sweep past a visited cell: the last visit not beyond the prediction
+def test_a_dead_robots_sweep_is_taken_over_from_its_first_visit_of_where_it_stood():
+    # a robot may be far behind its sweep's prediction (back from out, the sweep taken up late):
+    # of two visits of the cell it stood on, only the first skips no cell it never sensed
     from ost_ros.protocols.shared.recovery import Sweep
     from ost_ros.realtime.comms import _remainder
 
     path = ((0, 0), (1, 0), (2, 0), (1, 0), (1, 1))
     sw = Sweep(0, path, 0, 4)
-    assert _remainder(sw, 4, 1, (1, 0)) == path[3:]  # predicted at index 4: the second visit
-    assert _remainder(sw, 2, 1, (1, 0)) == path[1:]  # predicted at index 2: the first
+    assert _remainder(sw, 4, 1, (1, 0)) == path[1:]  # predicted at the second visit: the first
+    assert _remainder(sw, 2, 1, (1, 0)) == path[1:]
     assert _remainder(sw, 2, 1, (5, 5)) == path  # not on it: all of it
 
 
