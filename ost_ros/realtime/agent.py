@@ -213,7 +213,7 @@ class RealtimeAgent:
     _gate: int | None = None
     _gated_at: int = -1  # the step of the decision the gate holds (it commits below it meanwhile)
     _asked_for: Assignment | None = None  # the task it asked ahead for (_ask_ahead)
-    _open: tuple[tuple[int, ...], dict[int, frozenset[int]]] = ((), {})
+    _open: tuple[tuple[int, ...], dict[int, frozenset[int]]] = field(default_factory=lambda: ((), {}))
     _event: int | None = None  # the comm's next event after the last batch (cached)
     _event_for: int = -2
     # Membership: declared out (a notice of it taken), its life now, the Hello it sent (the
@@ -517,9 +517,13 @@ class RealtimeAgent:
             return
         nxt = self._next_batch()
         if (nxt is None or nxt > u) and not self.batches.complete(u):
-            need = self.batches.ask(u)
-            if need is not None:
-                self._out.append(Publish(need))
+            self._need(u)
+
+    def _need(self, u: int) -> None:
+        """Ask the peers lacking for batch u to announce their watermarks (once per batch)."""
+        need = self.batches.ask(u)
+        if need is not None:
+            self._out.append(Publish(need))
 
     def _open_at(self, s: int) -> frozenset[int]:
         k, comm = self.comm.knowledge, self.comm
@@ -626,16 +630,13 @@ class RealtimeAgent:
         kept (:meth:`_frozen`), so its task list is its part of the schedule after what it has
         taken up — unless the task it was walking to went to the new plan: it lets it go."""
         a, comm = self.agent, self.comm
-        comm.replanned = False
         sched = comm.knowledge.schedule
         if a.current is not None and not any(e is a.current for e in sched):
             a.current = None
             a._taken -= 1
             if a.state is not GlobalState.SEARCHING:
                 a.state = GlobalState.DECISION
-        a.tasks.clear()
-        a.tasks.extend(a._own()[a._taken :])
-        a._seen_schedule = len(sched)
+        a._resync()  # (the lockstep agent's: its part of the schedule after what it took up)
 
     # ------------------------------------------------------------------ membership
 
@@ -815,12 +816,10 @@ class RealtimeAgent:
             if nxt is not None and nxt <= u:
                 return  # a batch before it is under way (the pump asks for it)
             if not self._asked:  # its own watermark first (nothing else may wake it to commit it)
-                self._marks(self.speaker.commit(self._capped(math.floor(now + EPS))), now)
+                self._commit(now)
             if not self._known(u):
                 if self.speaker.committed >= u:
-                    need = self.batches.ask(u)
-                    if need is not None:
-                        self._out.append(Publish(need))
+                    self._need(u)
                 return
         self._gate = None
         self._decided = -1.0

@@ -50,11 +50,6 @@ class Variant:
         name += " improved" if self.planner != "paper" else ""
         return name + (f" L={self.latency[0]:g}:{self.latency[1]:g}" if self.latency else "")
 
-    @property
-    def lockstep(self) -> str:
-        """The label of the same variant run in lockstep."""
-        return Variant(self.protocol, self.ci, self.planner).label
-
     def run(self, task: Task):
         scenario = scenario_of(task)
         ci = task.objects if self.ci == "M" else int(self.ci or 1)
