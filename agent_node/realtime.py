@@ -64,6 +64,8 @@ START_S = 0.05  # how often it looks whether its endpoints are matched, before t
 # A robot held up this long (wall) by a batch says what it waits for (throttled): a stalled team
 # names the robot it waits on, and that robot says what it waits for.
 STALL_S = 5.0
+# How often it looks whether it is held up, and whether a peer's readers came back (wall s).
+WATCH_S = 1.0
 DEBUG = bool(os.environ.get("OST_RT_DEBUG"))
 
 
@@ -111,10 +113,13 @@ class RealtimeAgentNode(Node):
         self.last_goal = 0  # the id of the goal sent last
         self.ask_at: float | None = None  # a decision waiting for its picture of its base
         self.said = {"messages": 0, "marks": 0, "needs": 0}  # what it published (the report's log line)
+        # Its messages as it sealed them, for a peer that comes back after missing them (below)
+        self.originals: list[tuple[Any, bytes]] = []
+        self.readers = 0  # the readers its message and mark writers had at the last look
         self._build_endpoints()
         self.start_timer = self.create_timer(START_S, self.try_ready, clock=self.wall)
         self.wake_timer = self.create_timer(1.0, self.on_wake, clock=self.wall, autostart=False)
-        self.stall_timer = self.create_timer(STALL_S / 2, self.watch, clock=self.wall)
+        self.stall_timer = self.create_timer(WATCH_S, self.watch, clock=self.wall)
         self.asking: tuple[float | None, float] = (None, 0.0)  # (the decision waiting, since)
 
     # ------------------------------------------------------------------ endpoints
@@ -236,6 +241,7 @@ class RealtimeAgentNode(Node):
         if not self.started:
             self.started = True
             self._now = msg.t
+            self.readers = self.reader_count()
             self.out(self.rt.start(self.now()))
             self.take_base()  # what its base said before (what it senses where it stands)
             early, self.early = self.early, []
@@ -284,8 +290,12 @@ class RealtimeAgentNode(Node):
                 self.arm(pending[0])
 
     def watch(self) -> None:
-        """Say what holds the robot up, once it has waited STALL_S of wall time."""
-        if not self.started or self.report_sent:
+        """Say what holds the robot up, once it has waited STALL_S of wall time; say again what
+        it said to readers that came back."""
+        if self.report_sent:
+            return
+        self.readers_back()
+        if not self.started:
             return
         now, wall = self.now(), time.monotonic()
         base = f"goals sent {self.last_goal}; base events in {self.base_in}"
@@ -301,6 +311,27 @@ class RealtimeAgentNode(Node):
                 f"held up at sim time {now:.0f}: the decision of time {asking:g} has waited "
                 f"{wall - self.asking[1]:.0f} s for its base to start or end the goal sent last ({base})",
             )
+
+    def reader_count(self) -> int:
+        return sum(p.get_subscription_count() for p in [*self.kind_pubs.values(), self.pub_marks])
+
+    def readers_back(self) -> None:
+        """A peer cut off longer than DDS keeps a participant (its lease: a network partition)
+        comes back as a new match, and what was published meanwhile never reaches it: reliable
+        delivery is per match. So when its writers' readers grow again, the robot publishes
+        every message it sent again, as it sealed them (a receiver drops the copies it has), and
+        its watermark (a Mark: the batches a peer waits for complete). A short cut needs none of
+        this: DDS repairs it (docs/realtime.md, "Partitions over DDS")."""
+        readers = self.reader_count()
+        back, self.readers = readers > self.readers, readers
+        if not back or not self.started:
+            return
+        for pub, data in self.originals:
+            self.guard.relay(pub, data)
+        sp = self.rt.batches.speaker
+        if sp.committed >= 0:
+            self.guard.publish(self.pub_marks, Mark(self.me, sp.committed, sp.seq), run=self.run)
+        self.said["again"] = self.said.get("again", 0) + 1
 
     # ------------------------------------------------------------------ what comes in
 
@@ -394,7 +425,8 @@ class RealtimeAgentNode(Node):
         if isinstance(payload, Envelope):
             kind = type(payload.message)
             sample = Sample(payload.message, payload.stamp, payload.seq, self.run, payload.implied)
-            self.guard.publish(self.kind_pubs[kind], sample)
+            pub = self.kind_pubs[kind]
+            self.originals.append((pub, self.guard.publish(pub, sample)))
             self.said["messages"] += 1
         elif isinstance(payload, Mark):
             self.guard.publish(self.pub_marks, payload, run=self.run)

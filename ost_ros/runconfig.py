@@ -32,6 +32,7 @@ from ost_ros.coordination import ORGANISATIONS, CoordinationPolicy
 from ost_ros.errors import UsageError
 from ost_ros.model import DEFAULT_HEIGHT, DEFAULT_NMAX, DEFAULT_WIDTH
 from ost_ros.protocols.shared.agent import PLAN_HORIZON
+from ost_ros.realtime.net import parse_split
 
 # Node roles: the processes of a run that read settings as ROS parameters.
 WORLD, AGENT, WATCH = "world", "agent", "watch"
@@ -184,9 +185,10 @@ def _settings() -> tuple[Setting, ...]:
           WA, metavar="DIR"),
         S("failure_timeout", FAILURE_TIMEOUT_S, "liveliness lease (s): a silent agent fails after "
           "about 2 x this (0: off)", "ROS", WA, 0.0, 3600.0, metavar="SEC"),
-        S("membership", "world", "realtime runs: who declares a silent robot out — world (the "
-          "membership role in the world's process) or node (a membership_node of its own; the "
-          "world has no membership role)", "ROS", W, choices=("world", "node"), option=False),
+        S("membership", "node", "realtime runs: who declares a silent robot out — node (a "
+          "membership_node process of its own, started beside the world; the world has no "
+          "membership role) or world (the role in the world's process)", "ROS", W,
+          choices=("node", "world")),
         S("rediscover_s", REDISCOVER_S, "create anew the endpoints whose matching has not moved for "
           "this long at start (s)", "ROS", WA, 0.1, 3600.0, option=False),
         S("observers", 0, "readers beside the team (a recorder, a live view) the start waits for",
@@ -249,6 +251,10 @@ def _settings() -> tuple[Setting, ...]:
           metavar="PCT", launch=hosts_only),
         S("discovery", "multicast", "with --hosts: how participants find each other", "faults",
           choices=("multicast", "static", "server"), launch=hosts_only),
+        S("split", [], "with --realtime --hosts K: no traffic between groups of robots from sim "
+          "time T for S wall seconds (each group on hosts of its own; the world's host, with the "
+          "membership node, reaches every robot; repeatable)", "faults", metavar="GROUPS:T:S",
+          launch=hosts_only, parse=parse_split),
     )
     # fmt: on
 
@@ -403,6 +409,14 @@ class RunConfig:
             )
         if self["record"] and not self["record"].endswith(".mcap"):
             raise ConfigError("record", f"{self['record']!r} must end in .mcap")
+        if self["split"]:
+            if not (self["realtime"] and self["hosts"]):
+                raise ConfigError("split", "needs --realtime and --hosts K (it cuts simulated hosts apart)")
+            need = 1 + max(len(groups) for groups, _t, _s in self.splits())
+            if self["hosts"] < need:
+                raise ConfigError(
+                    "split", f"needs --hosts {need} or more: the world's host and one per group"
+                )
         if self["hosts"]:
             if not is_root:
                 raise ConfigError("hosts", "simulated hosts need root (network namespaces)")
@@ -446,6 +460,10 @@ class RunConfig:
     def observers(self) -> int:
         """A recorder or live view: every node's start waits for it too."""
         return int(bool(self["record"] or self["foxglove"]))
+
+    def splits(self) -> list[tuple[tuple[frozenset[int], ...], int, int]]:
+        """The network partitions over simulated hosts: (groups, from sim time, for wall s)."""
+        return [parse_split(x) for x in self["split"]]
 
     def kills(self) -> dict[int, int]:
         return dict(agent_step(x) for x in self["kill_agent"])

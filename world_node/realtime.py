@@ -216,6 +216,7 @@ class RealtimeWorldNode(Node):
         self.last_clock = self.progress_at = -1.0
         self.live = set(self.ids)  # robots not out (a robot back is in again)
         self.digests: dict[int, dict[int, tuple[str, str]]] = {}  # stamp -> agent -> digest
+        self.digest_at: dict[int, float] = {}  # stamp -> when its last digest came (epoch s)
         self.events = dict.fromkeys(self.ids, 0)  # base events sent to each robot
         self.sent_events = False  # since the last base clock
         self.advanced = 0.0  # the sim time the world's events are out up to (the bases' clock)
@@ -543,6 +544,7 @@ class RealtimeWorldNode(Node):
 
     def on_digest(self, d: Digest) -> None:
         self.digests.setdefault(d.stamp, {})[d.sender] = (d.input, d.output)
+        self.digest_at[d.stamp] = time.time()  # the last robot's, so far (ost up --split's heal)
 
     # ------------------------------------------------------------------ membership
 
@@ -643,6 +645,7 @@ class RealtimeWorldNode(Node):
                 "events": [list(e) for e in self.membership_log],
             },
             "lag": {str(r.agent): r.lag for r in sorted(self.reports.values(), key=lambda r: r.agent)},
+            "digests_at": {str(s): round(t, 3) for s, t in sorted(self.digest_at.items())},
             "wall_s": round(wall, 3),
             "bring_up_s": None if self.bring_up_s is None else round(self.bring_up_s, 2),
         }

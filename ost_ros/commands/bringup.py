@@ -272,6 +272,7 @@ def _prepare(run: Run, say: Say, owner: int, launch: bool) -> None:
 
     scenario = load_scenario(scenario_path)
     run.ids = [a.id for a in (with_team(scenario, team) if team else scenario).agents]
+    hosts = _split_hosts(cfg, run.ids)  # (before the hosts are made: a bad split costs nothing)
     keys = cfg["keys"]
     if not cfg["insecure"] and not keys:
         from ost_msgs_py.auth import make_keys
@@ -307,6 +308,8 @@ def _prepare(run: Run, say: Say, owner: int, launch: bool) -> None:
             yaml.safe_dump({"/**": {"ros__parameters": params}}, sort_keys=False)
         )
     run.processes.append(Process("world", "world_node", WORLD))
+    if cfg["realtime"] and cfg["membership"] == "node":  # who is in the team: apart from the world
+        run.processes.append(Process("membership", "membership_node", WORLD))
     for slot, i in enumerate(run.ids, start=1):
         own: dict[str, Any] = {"agent_id": i}
         for name in ("die_at_step", "mute_negotiation_from"):
@@ -317,9 +320,35 @@ def _prepare(run: Run, say: Say, owner: int, launch: bool) -> None:
         if cfg["realtime"]:  # on the run's sim time: the world's clock of its namespace
             own["use_sim_time"] = True
             remaps = [("/clock", f"/{cfg['namespace'].strip('/')}/clock")]
-        run.processes.append(Process(f"agent_{i}", "agent_node", AGENT, own, host=slot, remaps=remaps))
+        host = hosts.get(i, 0) if hosts else slot  # (split: a robot in no group with the world)
+        run.processes.append(Process(f"agent_{i}", "agent_node", AGENT, own, host=host, remaps=remaps))
     if cfg["background"]:
         (d / "background").touch()
+
+
+def _split_hosts(cfg: RunConfig, ids: list[int]) -> dict[int, int]:
+    """With --split: each robot's simulated host — group g of the first split on host g + 1, a
+    robot in no group on the world's host 0 (it reaches everyone) — checked against every split
+    (a host's robots in one group; the team's robots only). Without: {} (robots spread)."""
+    splits = cfg.splits()
+    if not splits:
+        return {}
+    team = set(ids)
+    groups, _t, _s = splits[0]
+    hosts = {a: 1 + g for g, members in enumerate(groups) for a in members}
+    for groups, t, s in splits:
+        text = f"{'/'.join(','.join(map(str, sorted(g))) for g in groups)}:{t}:{s}"
+        unknown = sorted(frozenset().union(*groups) - team)
+        if unknown:
+            raise ConfigError("split", f"{text}: no agents {unknown} (team {sorted(team)})")
+        for h in {hosts.get(a, 0) for a in team}:
+            on = {a for a in team if hosts.get(a, 0) == h}
+            cut = [g for g in groups if g & on]
+            if len(cut) > 1 or (h == 0 and cut):
+                raise ConfigError(
+                    "split", f"{text}: robots {sorted(on)} share a host (the first split's groups place them)"
+                )
+    return hosts
 
 
 def _environment(run: Run, owner: int) -> None:
@@ -338,6 +367,8 @@ def _environment(run: Run, owner: int) -> None:
         run.netns = f"ost{domain}"
         ips = hosts.up(run.netns, cfg["hosts"], net=domain, loss=cfg["loss"],
                        block_multicast=cfg["discovery"] != "multicast")  # fmt: skip
+        if cfg["split"] and shutil.which("nft") is None:
+            raise ConfigError("split", "nft not found (Debian package nftables): it cuts the hosts apart")
         env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(HOSTS_PROFILE)
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
         if cfg["discovery"] == "static":

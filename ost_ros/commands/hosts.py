@@ -8,7 +8,8 @@
 ``up``: hosts NAME_h0 .. NAME_h{K-1} with addresses 10.77.N.1 .. 10.77.N.K (/24), printed one per
 line. ``--loss PCT`` drops PCT % of every packet a host sends (nftables ``numgen random``, inside the
 host's namespace); ``--block-multicast`` drops multicast (224.0.0.0/4) on the bridge, so DDS
-discovery needs ROS_STATIC_PEERS or a discovery server. ``down``: deletes NAME's namespaces. Run a
+discovery needs ROS_STATIC_PEERS or a discovery server. ``down``: deletes NAME's namespaces.
+:func:`cut` and :func:`heal` part groups of hosts and join them again (``ost up --split``). Run a
 command on host i with ``ip netns exec NAME_h<i> COMMAND``. ``ost up --hosts K`` uses this.
 """
 
@@ -104,6 +105,28 @@ def up(name: str, k: int, net: int = 77, loss: int = 0, block_multicast: bool = 
         down(name)
         raise
     return ips
+
+
+def cut(name: str, groups: list[list[int]], tag: int = 0) -> None:
+    """No traffic between the hosts of different ``groups`` (host indices), multicast included:
+    a bridge rule on the switch between their ports (table ``split<tag>``), until :func:`heal`.
+    Hosts in no group reach everyone."""
+    if shutil.which("nft") is None:
+        raise UsageError("nft not found (Debian package nftables) for --split")
+    ports = [", ".join(f'"p{h}"' for h in g) for g in groups]
+    rules = "".join(
+        f"  iifname {{ {a} }} oifname {{ {b} }} drop\n"
+        for i, a in enumerate(ports)
+        for j, b in enumerate(ports)
+        if i != j
+    )
+    table = f"table bridge split{tag} {{\n chain forward {{\n  type filter hook forward priority -10;\n{rules} }}\n}}\n"
+    _run("ip", "netns", "exec", f"{name}_sw", "nft", "-f", "-", stdin=table)
+
+
+def heal(name: str, tag: int = 0) -> None:
+    """Undo :func:`cut` ``tag``."""
+    _run("ip", "netns", "exec", f"{name}_sw", "nft", "delete", "table", "bridge", f"split{tag}")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -14,6 +14,7 @@ from ost_ros.coordination import CoordinationPolicy
 from ost_ros.errors import UsageError
 from ost_ros.model import Scenario
 from ost_ros.protocols import ProtocolError
+from ost_ros.realtime.net import parse_split
 
 
 def latency(text: str) -> tuple[float, float]:
@@ -54,20 +55,10 @@ def join(text: str) -> tuple[int, int]:
 
 def split(text: str) -> tuple[tuple[frozenset[int], ...], int, int]:
     """argparse type: GROUPS:STEP:S, GROUPS robots by commas, groups by slashes (0,1,2/3,4)."""
-    parts = text.split(":")
     try:
-        groups_text, t, s = parts
-        groups = tuple(frozenset(int(x) for x in g.split(",")) for g in groups_text.split("/"))
-        step, steps = int(t), int(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected GROUPS:STEP:S (e.g. 0,1,2/3,4:100:50), got {text!r}"
-        ) from None
-    if len(groups) < 2 or step < 0 or steps < 1 or any(a < 0 for g in groups for a in g):
-        raise argparse.ArgumentTypeError(f"expected two groups or more, STEP ≥ 0, S ≥ 1, got {text!r}")
-    if sum(len(g) for g in groups) != len(frozenset().union(*groups)):
-        raise argparse.ArgumentTypeError(f"a robot in two groups: {text!r}")
-    return groups, step, steps
+        return parse_split(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).replace("GROUPS:T:S", "GROUPS:STEP:S")) from None
 
 
 def positive(text: str) -> float:

@@ -21,10 +21,12 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
 from ost_ros.commands.bringup import PROGRESS, READY, RESULT, Process, Run, release
+from ost_ros.errors import UsageError
 
 SHM = Path("/dev/shm")
 SHM_PREFIXES = ("fastrtps_", "sem.fastrtps_", "fast_datasharing")
@@ -69,6 +71,75 @@ def _reap(pid: int) -> int | None:
     return os.waitstatus_to_exitcode(status) if os.WIFEXITED(status) else 128 + os.WTERMSIG(status)
 
 
+@dataclass
+class Cut:
+    """One ``--split`` over simulated hosts: what it cuts, when, and what happened (epoch s)."""
+
+    groups: tuple[frozenset[int], ...]
+    at: int  # the sim time it begins at
+    seconds: int  # how long it lasts (wall)
+    hosts: list[list[int]]  # each group's hosts
+    cut: tuple[float, float] | None = None  # (wall, sim time) it began
+    healed: tuple[float, float] | None = None  # (wall, sim time) it ended
+
+
+class Partitions:
+    """``--split GROUPS:T:S`` over the simulated hosts: each cut (a bridge rule between the groups'
+    hosts) once the run's sim time reaches T, healed S wall seconds later; what happened goes into
+    the result (``membership.splits``), with how long after the heal the last robot took the last
+    batch stamped before it (its digest: ``agree_after_s``)."""
+
+    def __init__(self, run: Run, say):
+        self.run, self.say = run, say
+        host = {int(p.name.split("_")[1]): p.host for p in run.agents}
+        self.cuts = [
+            Cut(groups, t, s, [sorted({host[a] for a in g}) for g in groups])
+            for groups, t, s in run.config.splits()
+        ]
+
+    def tick(self) -> None:
+        if not any(c.healed is None for c in self.cuts):
+            return
+        try:
+            sim = float(_text(self.run.file(PROGRESS)).split()[0])
+        except (IndexError, ValueError):
+            return  # not started
+        from ost_ros.commands import hosts
+
+        for k, c in enumerate(self.cuts):
+            if c.cut is None and sim >= c.at:
+                hosts.cut(self.run.netns, c.hosts, k)
+                c.cut = (time.time(), sim)
+                names = " | ".join(",".join(map(str, sorted(g))) for g in c.groups)
+                self.say(f"split {names}: no traffic between them from sim time {sim:g} for {c.seconds} s")
+            elif c.cut is not None and c.healed is None and time.time() - c.cut[0] >= c.seconds:
+                hosts.heal(self.run.netns, k)
+                c.healed = (time.time(), sim)
+                self.say(f"split healed at sim time {sim:g}")
+
+    def record(self) -> None:
+        """The splits into the run's result (the world's JSON, with the digests' arrival times)."""
+        if not self.cuts:
+            return
+        path = self.run.file(RESULT)
+        data = json.loads(path.read_text())
+        arrived = {int(s): t for s, t in data.get("digests_at", {}).items()}
+        out = []
+        for c in self.cuts:
+            item: dict = {"groups": [sorted(g) for g in c.groups], "seconds": c.seconds,
+                          "from": None, "healed": None, "agree_after_s": None}  # fmt: skip
+            if c.cut is not None:
+                item["from"] = round(c.cut[1], 3)
+            if c.healed is not None:
+                wall, sim = c.healed
+                item["healed"] = round(sim, 3)
+                late = [t for s, t in arrived.items() if s <= sim]
+                item["agree_after_s"] = round(max(max(late, default=wall) - wall, 0.0), 3)
+            out.append(item)
+        data.setdefault("membership", {})["splits"] = out
+        path.write_text(json.dumps(data, indent=1) + "\n")
+
+
 class Supervisor:
     """One run's processes until its result (see the module docstring)."""
 
@@ -77,6 +148,7 @@ class Supervisor:
         self.cfg = run.config
         self.stay = bool(self.cfg["background"])
         self.respawns = self.cfg["respawn_world"]
+        self.partitions = Partitions(run, self.say)
         self.started = False
         self.shown = ""
         self.t0 = time.monotonic()
@@ -94,7 +166,8 @@ class Supervisor:
         if self.cfg["foxglove"]:
             self.say(f"live view: open ws://127.0.0.1:{self.cfg['foxglove']} in the Foxglove app "
                      "(Open connection, Foxglove WebSocket)")  # fmt: skip
-        self.say(f"started world + {len(run.agents)} agents{hosts} ({where}, run dir {run.dir})")
+        monitor = " + membership node" if any(p.name == "membership" for p in run.processes) else ""
+        self.say(f"started world{monitor} + {len(run.agents)} agents{hosts} ({where}, run dir {run.dir})")
 
     def say(self, text: str) -> None:
         self.end_progress()
@@ -134,7 +207,9 @@ class Supervisor:
                 run.file(STARTED).touch()  # for --background's caller (wait_started)
             self.progress()
             if result.exists() and (self.stay or "world" not in self.alive()):
+                self.partitions.record()
                 return None
+            self.partitions.tick()
             for name, pid in list(self.pids.items()):
                 code = _reap(pid)
                 if code is None:
@@ -157,8 +232,8 @@ class Supervisor:
             world = next(p for p in self.run.processes if p.name == "world")
             self.pids["world"] = start(self.run, world, ["-p", "resume:=true"])
             return None
-        if over:
-            return None  # the run is over: everyone leaves
+        if over or (name == "membership" and code == 0):
+            return None  # the run is over: everyone leaves (the membership node at run_end)
         if name.startswith("agent_") and self.started:
             self.say(f"{name} (pid {pid}) died mid-run (exit code {code}); the world declares it failed after "
                      f"2 x {self.cfg['failure_timeout']:g} s without its liveliness")  # fmt: skip
@@ -349,6 +424,13 @@ def stop(run_dir: Path) -> int:
                 time.sleep(POLL_S)
             _signal(pid, signal.SIGKILL)
         f.unlink(missing_ok=True)
+    # The simulated hosts, should no supervisor have removed them (a run prepared and never
+    # supervised, or whose supervisor was killed). (A domain lock whose owner is gone is taken
+    # over by the next run: left, since another run may hold that domain by now.)
+    with contextlib.suppress(UsageError):
+        run = Run.load(run_dir)
+        run.domain_lock = ""
+        release(run)
     return left
 
 

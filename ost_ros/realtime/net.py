@@ -85,6 +85,23 @@ class Split:
         return gs is not None and gr is not None and gs is not gr
 
 
+def parse_split(text: str) -> tuple[tuple[frozenset[int], ...], int, int]:
+    """GROUPS:T:S — robots by commas, groups by slashes (``0,1,2/3,4:100:50``): two groups or more,
+    no robot in two, T ≥ 0, S ≥ 1 (what T and S count is the caller's: steps in process, sim
+    time and wall seconds over DDS). A ValueError says what is wrong."""
+    try:
+        groups_text, t, s = text.split(":")
+        groups = tuple(frozenset(int(x) for x in g.split(",")) for g in groups_text.split("/"))
+        start, length = int(t), int(s)
+    except ValueError:
+        raise ValueError(f"expected GROUPS:T:S (e.g. 0,1,2/3,4:100:50), got {text!r}") from None
+    if len(groups) < 2 or start < 0 or length < 1 or any(a < 0 for g in groups for a in g):
+        raise ValueError(f"expected two groups or more, T ≥ 0, S ≥ 1, got {text!r}")
+    if sum(len(g) for g in groups) != len(frozenset().union(*groups)):
+        raise ValueError(f"a robot in two groups: {text!r}")
+    return groups, start, length
+
+
 @dataclass
 class Network:
     """Broadcasts over seeded latencies into an :class:`EventQueue` (``splits``: partitions that

@@ -3,6 +3,7 @@ configuration — scenario, keys, each node role's parameter file, the processes
 environment — and every refusal one line, exit code 2, nothing left behind. (Runs themselves:
 tests/ros/test_bringup.py.)"""
 
+import os
 import shlex
 from pathlib import Path
 
@@ -87,6 +88,12 @@ def test_a_team_replaces_the_scenarios(tmp_path):
         (["--agents", "2", "--objects", "2", "--record", "x.bag"], "--record: 'x.bag' must end in .mcap"),
         (["--agents", "2", "--objects", "2", "--namespace", "a-b"], "--namespace: 'a-b' is not a ROS"),
         (["--agents", "2", "--objects", "2", "--bogus"], "unrecognized arguments: --bogus"),
+        (["--agents", "4", "--objects", "4", "--split", "0,1/2,3:10:5"],
+         "--split: needs --realtime and --hosts K"),
+        (["--agents", "4", "--objects", "4", "--realtime", "--split", "0,1:10:5"],
+         "--split: expected two groups or more"),
+        (["--agents", "4", "--objects", "4", "--realtime", "--split", "0,1/1,2:10:5"],
+         "--split: a robot in two groups"),
     ],
 )  # fmt: skip
 def test_errors_are_one_line_exit_2_and_leave_nothing(tmp_path, capsys, args, text):
@@ -141,3 +148,38 @@ def test_yaml_loads_as_pyyaml_safe_load(tmp_path):
     assert safe_load(text) == yaml.safe_load(text)
     with pytest.raises(yaml.YAMLError):
         safe_load("a: !!python/object/apply:os.system ['true']")
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="simulated hosts need root (the split's checks come after)")
+@pytest.mark.parametrize(
+    ("split", "text"),
+    [
+        (["0,1/2,3:10:5"], "--split: needs --hosts 3 or more: the world's host and one per group"),
+        (["0,1/2,9:10:5"], "--split: 0,1/2,9:10:5: no agents [9] (team [0, 1, 2, 3])"),
+        (["0,1/2,3:10:5", "0,2/1,3:50:5"], "--split: 0,2/1,3:50:5: robots [0, 1] share a host"),
+        (["0,1/2:10:5", "0,1/2,3:50:5"], "--split: 0,1/2,3:50:5: robots [3] share a host"),
+    ],
+)
+def test_a_split_that_cannot_be_made_is_one_line(tmp_path, capsys, split, text):
+    hosts = "2" if "needs --hosts" in text else "3"
+    args = ["--agents", "4", "--objects", "4", "--nmax", "3", "--realtime", "--hosts", hosts]
+    for s in split:
+        args += ["--split", s]
+    assert exit_code(["up", "--prepare", "--run-dir", str(tmp_path / "run"), *args]) == 2
+    err = capsys.readouterr().err
+    assert text in err and len(err.strip().splitlines()) == 1, err
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="simulated hosts need root")
+def test_a_split_places_each_group_on_hosts_of_its_own(tmp_path):
+    """Group g of the first split on host g + 1; a robot in no group with the world and the
+    membership node on host 0 (it reaches everyone)."""
+    d = prepare(tmp_path, "--agents", "5", "--objects", "4", "--nmax", "3", "--realtime", "--hosts", "3",
+                "--split", "0,1/3:10:5")  # fmt: skip
+    try:
+        hosts = {line.split("\t")[0]: line.split("\t")[1] for line in (d / "processes").read_text().splitlines()}
+        ns = hosts["world"].rsplit("_", 1)[0]
+        assert hosts["world"] == hosts["membership"] == hosts["agent_2"] == hosts["agent_4"] == f"{ns}_h0"
+        assert hosts["agent_0"] == hosts["agent_1"] == f"{ns}_h1" and hosts["agent_3"] == f"{ns}_h2"
+    finally:
+        assert ost(["up", "--down", str(d)]) == 0

@@ -2,8 +2,8 @@
 sim_hosts.sh): the world and the agents on K = 3 simulated hosts with their own IPs give exactly
 the single-host run (= ``ost sim``) — with default multicast discovery, with multicast blocked
 and ROS_STATIC_PEERS or a Fast DDS discovery server instead, and with 20 % of every packet each
-host sends dropped (nftables ``numgen``); and a realtime run on lossy hosts keeps the protocol's
-promise."""
+host sends dropped (nftables ``numgen``); a realtime run on lossy hosts keeps the protocol's
+promise; and a partition between the hosts of two groups of robots heals."""
 
 import os
 import shutil
@@ -93,6 +93,36 @@ def test_a_realtime_run_on_lossy_hosts_keeps_the_promise(tmp_path):
     assert run.returncode == 0, run.stderr[-3000:]
     assert "loss 20 %" in run.stderr
     kept_its_promise(result_json(run.stdout), 8)
+    assert no_namespaces_left(run.stderr)
+
+
+@pytest.mark.skipif(not NFT, reason="nft (Debian package nftables) is needed to cut the hosts apart")
+@pytest.mark.parametrize("seconds", [5, 25])
+def test_a_partition_between_hosts_heals(tmp_path, seconds):
+    """``--split``: robots 0-2 and 3-5 on two hosts with no traffic between them (a bridge
+    rule), the world and the membership node on a third that reaches both. 5 s: DDS keeps the
+    peers (their participants' lease is 20 s) and repairs what crossed; 25 s: DDS drops the
+    peers, what was published meanwhile is lost for good, and when the readers come back each
+    robot says its messages and watermark again. Either way: every object delivered, the same
+    schedule everywhere, nobody declared out, each side waited for the other (no split brain)."""
+    path = tmp_path / "s.yaml"
+    path.write_text(dump_scenario(generate_scenario(6, 8, 1, Grid(60, 20), 3)))  # finds until 79
+    run = ost_up(
+        "--scenario", str(path), "--realtime", "--rtf", "20", "--hosts", "3",
+        "--split", f"0,1,2/3,4,5:30:{seconds}", "--json", "--run-dir", str(tmp_path / "run"),
+        "--timeout", "240", timeout=300,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert "split 0,1,2 | 3,4,5: no traffic between them" in run.stderr and "split healed" in run.stderr
+    result = result_json(run.stdout)
+    kept_its_promise(result, 8)
+    m = result["membership"]
+    assert m["declared"] == 0 and m["out_at_end"] == [] and result["failures"] == []
+    (split,) = m["splits"]
+    assert split["groups"] == [[0, 1, 2], [3, 4, 5]] and split["healed"] is not None
+    assert split["healed"] - split["from"] >= seconds * 20 * 0.9  # (sim time passed while cut)
+    assert result["makespan"] > split["healed"]  # the team waited for the heal
+    assert split["agree_after_s"] is not None
     assert no_namespaces_left(run.stderr)
 
 

@@ -75,15 +75,23 @@ def test_greedy_and_the_improved_planner_deliver_everything_with_ten_robots(tmp_
     kept_its_promise(result_json(run.stdout), 12)
 
 
-def test_a_robot_killed_mid_run_is_recovered_from(tmp_path):
+@pytest.mark.parametrize("monitor", ["node", "world"])
+def test_a_robot_killed_mid_run_is_recovered_from(tmp_path, monitor):
+    """Who declares it: the membership node ``ost up`` starts beside the world (the default), or
+    the membership role in the world's own process (``--membership world``)."""
     path = _scenario(tmp_path, agents=5, objects=8, seed=2)
     run = ost_up(
         "--scenario", str(path), "--realtime", "--rtf", "50", "--kill-agent", "2:40",
+        "--membership", monitor,
         "--json", "--run-dir", str(tmp_path / "run"), "--timeout", "180",
     )  # fmt: skip
     assert run.returncode in (0, 1), run.stderr[-3000:]
     result = result_json(run.stdout)
     assert [f["agent"] for f in result["failures"]] == [2]
+    assert result["membership"]["monitor"] == monitor and result["membership"]["declared"] == 1
+    who = "membership" if monitor == "node" else "world"
+    assert "agent 2 out" in (tmp_path / "run" / f"{who}.log").read_text()
+    assert ("membership node" in run.stderr) == (monitor == "node")
     assert result["disagreements"] == 0 and result["agreement"]
     movable = [o for o in result["objects"] if o["delivered"] is not None]
     # every object the four survivors can carry is delivered (n_i <= 3 here: all of them)
@@ -100,7 +108,7 @@ def _run_prepared(tmp_path, edit, extra=None, options=()):
             "--run-dir", str(run_dir), *options]  # fmt: skip
     subprocess.run(prep, check=True, capture_output=True)
     lines = [line.split("\t") for line in (run_dir / "processes").read_text().splitlines()]
-    agents = [name for name, _host, _cmd in lines if name != "world"]
+    agents = [name for name, _host, _cmd in lines if name.startswith("agent_")]
     domain = free_domain()
     procs = Processes(run_dir, domain)
     try:
@@ -248,26 +256,26 @@ def test_a_robot_stopped_for_5_s_is_declared_out_comes_back_and_works_again(tmp_
 
 
 def test_a_team_whose_world_has_no_membership_role_runs_with_a_membership_node(tmp_path):
-    """``membership:=node``: the world serves bases, sensing and the clock only; a
+    """``membership:=node`` (the default): the world serves bases, sensing and the clock only; a
     ``membership_node`` process of its own (the world's settings, its own key) watches
-    liveliness, commits and declares — a robot killed mid-run here. The run keeps every promise
-    of today's runs."""
+    liveliness, commits and declares — a robot killed mid-run here. Started by hand from what
+    ``ost up --prepare`` lists, as a deployment would. The run keeps every promise of today's
+    runs."""
     path = _scenario(tmp_path, agents=5, objects=8, seed=2)
     run_dir = tmp_path / "run"
     prep = [str(BIN / "ost"), "up", "--prepare", "--scenario", str(path), "--realtime", "--rtf", "50",
             "--run-dir", str(run_dir)]  # fmt: skip
     subprocess.run(prep, check=True, capture_output=True)
     lines = [line.split("\t") for line in (run_dir / "processes").read_text().splitlines()]
-    world = shlex.split(next(cmd for name, _host, cmd in lines if name == "world"))
     domain = free_domain()
     procs = Processes(run_dir, domain)
+    assert [name for name, _host, _cmd in lines][:2] == ["world", "membership"]
+    assert "membership_node --ros-args" in next(cmd for name, _host, cmd in lines if name == "membership")
+    assert "membership: node" in (run_dir / "world.params.yaml").read_text()
     try:
-        procs.run("membership", [str(BIN / "membership_node"), *world[world.index("--ros-args") :]])
         for name, _host, cmd in lines:
             argv = shlex.split(cmd)
-            if name == "world":
-                argv += ["-p", "membership:=node"]
-            elif name == "agent_1":
+            if name == "agent_1":
                 argv += ["-p", "die_at_step:=60"]
             procs.run(name, argv)
         end = time.monotonic() + 180
