@@ -177,7 +177,9 @@ def test_a_split_places_each_group_on_hosts_of_its_own(tmp_path):
     d = prepare(tmp_path, "--agents", "5", "--objects", "4", "--nmax", "3", "--realtime", "--hosts", "3",
                 "--split", "0,1/3:10:5")  # fmt: skip
     try:
-        hosts = {line.split("\t")[0]: line.split("\t")[1] for line in (d / "processes").read_text().splitlines()}
+        hosts = {
+            line.split("\t")[0]: line.split("\t")[1] for line in (d / "processes").read_text().splitlines()
+        }
         ns = hosts["world"].rsplit("_", 1)[0]
         assert hosts["world"] == hosts["membership"] == hosts["agent_2"] == hosts["agent_4"] == f"{ns}_h0"
         assert hosts["agent_0"] == hosts["agent_1"] == f"{ns}_h1" and hosts["agent_3"] == f"{ns}_h2"
