@@ -1,16 +1,21 @@
-"""Who is in the team over DDS: a robot stopped (SIGSTOP) and resumed, against the same run
-without the fault.
+"""Who is in the team over DDS: a robot stopped (SIGSTOP) and resumed, or the team cut in two
+(a network partition between simulated hosts), against the same run without the fault.
 
     flock /tmp/ost-dds.lock .venv/bin/python benchmarks/bench_membership_dds.py \\
         [--runs 5] [--stop 5] [--at 100] [--agents 6] [--objects 10] [--rtf 20] [--out DIR]
+    flock /tmp/ost-dds.lock .venv/bin/python benchmarks/bench_membership_dds.py --split 10 \\
+        --agents 10 [--groups 0,1,2,3,4,5/6,7,8,9] ...          (root, nftables)
 
 Each pair: one ``ost up --realtime`` run of the scenario (``ost generate --agents N --objects M
---seed 919 --width 120 --height 60 --nmax 3``), and one where robot 2's process is stopped at sim
-time --at for --stop wall seconds, then resumed. Reported: completed runs, disagreements, robots
-declared out and back, robots out at the end, the wall time from the resume to the robot being
-back in the team (its first goal of the new life reached the world), and the makespan against
-the run without the fault. Writes ``membership_dds.md`` into --out (default
-/tmp/ost_bench_membership_dds); every figure in it is computed from the runs.
+--seed 919 --width 120 --height 60 --nmax 3``), and one with the fault from sim time --at: robot
+2's process stopped for --stop wall seconds, then resumed; or (``--split S``) both runs on three
+simulated hosts, the second with ``--split GROUPS:AT:S`` (no traffic between the groups' hosts for
+S wall seconds). Reported: completed runs, disagreements, robots declared out and back, robots out
+at the end, the wall time from the resume to the robot being back in the team (its first goal of
+the new life reached the world) or from the heal to the last robot taking the last batch stamped
+before it (its digest), and the makespan against the run without the fault. Writes
+``membership_dds.md`` (or ``split_dds.md``) into --out (default /tmp/ost_bench_membership_dds);
+every figure in it is computed from the runs.
 """
 
 from __future__ import annotations
@@ -37,11 +42,19 @@ def sim_time(run_dir: Path) -> float:
         return -1.0
 
 
-def one(scenario: Path, rtf: float, stop: float | None, at: float, timeout: float = 600) -> dict:
-    """One run (with robot 2 stopped ``stop`` s from sim time ``at``, or not); its result."""
+def one(
+    scenario: Path,
+    rtf: float,
+    stop: float | None,
+    at: float,
+    split: list[str] | None = None,
+    timeout: float = 600,
+) -> dict:
+    """One run (with robot 2 stopped ``stop`` s from sim time ``at``, or not; on three hosts
+    with ``split``'s options, if given); its result."""
     d = Path(tempfile.mkdtemp(prefix="ost-bench-mem-"))
     cmd = [OST, "up", "--scenario", str(scenario), "--realtime", "--rtf", str(rtf), "--json"]
-    cmd += ["--run-dir", str(d / "run"), "--timeout", str(int(timeout))]
+    cmd += ["--run-dir", str(d / "run"), "--timeout", str(int(timeout)), *(split or [])]
     p = subprocess.Popen(
         cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
     )
@@ -81,13 +94,17 @@ def main() -> int:
     ap.add_argument("--agents", type=int, default=6)
     ap.add_argument("--objects", type=int, default=10)
     ap.add_argument("--rtf", type=float, default=20.0)
+    ap.add_argument("--split", type=int, default=0, metavar="S", help="cut the team in two for S s instead")
+    ap.add_argument(
+        "--groups", default="", help="with --split: the groups (default: the first 60 %% / the rest)"
+    )
     ap.add_argument("--out", default="/tmp/ost_bench_membership_dds")
     a = ap.parse_args()
+    if a.split:
+        return splits(a)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    scenario = out / "scenario.yaml"
-    gen = [OST, "generate", "--agents", str(a.agents), "--objects", str(a.objects), "--seed", "919"]
-    subprocess.run([*gen, "--width", "120", "--height", "60", "--nmax", "3", "-o", str(scenario)], check=True)
+    scenario = generate(a, out)
     rows = []
     for k in range(a.runs):
         base = one(scenario, a.rtf, None, a.at)
@@ -132,6 +149,73 @@ def main() -> int:
         )
     text = "\n".join(lines) + "\n"
     (out / "membership_dds.md").write_text(text)
+    print(text)
+    return 0 if all(r["completed"] and r["disagreements"] == 0 for r in rows) else 1
+
+
+def generate(a: argparse.Namespace, out: Path) -> Path:
+    scenario = out / "scenario.yaml"
+    gen = [OST, "generate", "--agents", str(a.agents), "--objects", str(a.objects), "--seed", "919"]
+    subprocess.run([*gen, "--width", "120", "--height", "60", "--nmax", "3", "-o", str(scenario)], check=True)
+    return scenario
+
+
+def splits(a: argparse.Namespace) -> int:
+    """Pairs of runs on three simulated hosts, the second cut in two for ``a.split`` s."""
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    scenario = generate(a, out)
+    k = max(1, round(0.6 * a.agents))
+    groups = a.groups or f"{','.join(map(str, range(k)))}/{','.join(map(str, range(k, a.agents)))}"
+    hosts = ["--hosts", "3"]
+    rows = []
+    for n in range(a.runs):
+        base = one(scenario, a.rtf, None, a.at, hosts)
+        fault = one(scenario, a.rtf, None, a.at, [*hosts, "--split", f"{groups}:{int(a.at)}:{a.split}"])
+        m = fault.get("membership", {})
+        (cut,) = m.get("splits", [{}])
+        rows.append(
+            {
+                "completed": bool(base["completed"] and fault["completed"]),
+                "disagreements": base["disagreements"] + fault["disagreements"],
+                "declared": m.get("declared", 0),
+                "out_at_end": m.get("out_at_end", []),
+                "agree_after_s": cut.get("agree_after_s"),
+                "ratio": fault["makespan"] / base["makespan"] - 1
+                if base["makespan"] and fault["makespan"]
+                else None,
+            }
+        )
+        print(f"  pair {n + 1}/{a.runs}: {rows[-1]}", file=sys.stderr)
+    agree = sorted(r["agree_after_s"] for r in rows if r["agree_after_s"] is not None)
+    ratios = [r["ratio"] for r in rows if r["ratio"] is not None]
+    lines = [
+        "# A partition over DDS (benchmarks/bench_membership_dds.py --split)",
+        "",
+        f"{a.runs} pairs of runs, N={a.agents}, M={a.objects}, 120×60, rtf {a.rtf:g}, three simulated hosts; "
+        f"in the second of each pair no traffic between robots {groups.replace('/', ' | ')} from sim time "
+        f"{a.at:g} for {a.split} s.",
+        "",
+        "| | |",
+        "|---|---|",
+        f"| both runs completed | {sum(r['completed'] for r in rows)} of {len(rows)} |",
+        f"| disagreements | {sum(r['disagreements'] for r in rows)} |",
+        f"| robots declared out / out at the end | {sum(r['declared'] for r in rows)} / "
+        f"{sum(len(r['out_at_end']) for r in rows)} |",
+    ]
+    if agree:
+        p99 = agree[min(len(agree) - 1, int(0.99 * len(agree)))]
+        lines.append(
+            f"| heal → every robot took the batches stamped before it (wall s) | median "
+            f"{statistics.median(agree):.2f}, p99 {p99:.2f}, max {max(agree):.2f} |"
+        )
+    if ratios:
+        lines.append(
+            f"| makespan vs no partition | median {statistics.median(ratios):+.1%} "
+            f"({', '.join(f'{x:+.1%}' for x in ratios)}) |"
+        )
+    text = "\n".join(lines) + "\n"
+    (out / "split_dds.md").write_text(text)
     print(text)
     return 0 if all(r["completed"] and r["disagreements"] == 0 for r in rows) else 1
 
