@@ -363,7 +363,8 @@ def add_animate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--animate",
         metavar="GIF|MP4",
-        help="also write an animation of the run (robots by state, objects, groups, deliveries)",
+        help="also write an animation of the run (robots by state, objects, groups, deliveries; "
+        "without a barrier, who is in the team when)",
     )
     p.add_argument("--fps", type=positive, default=20, help="animation frames per second (20)")
     p.add_argument(
@@ -402,8 +403,11 @@ def frame_recorder(args: argparse.Namespace, scenario: Scenario):
     return FrameRecorder(scenario, every=args.every)
 
 
-def write_animation(args: argparse.Namespace, scenario: Scenario, result: Any, recorder: Any) -> None:
-    """Draw the recorded frames into ``args.animate`` (a progress bar on a terminal)."""
+def write_animation(
+    args: argparse.Namespace, scenario: Scenario, result: Any, recorder: Any, heading: str = ""
+) -> None:
+    """Draw the recorded frames into ``args.animate`` (a progress bar on a terminal; ``heading``
+    ends each frame's title)."""
     from ost_ros.watch.animate import AnimationError, animate
 
     frames = recorder.finish()
@@ -420,6 +424,7 @@ def write_animation(args: argparse.Namespace, scenario: Scenario, result: Any, r
             args.animate,
             fps=args.fps,
             progress=(lambda i, n: bar.update(1)) if bar is not None else None,
+            heading=heading,
         )
     except AnimationError as exc:
         raise UsageError(f"--animate: {exc}") from None
