@@ -225,7 +225,7 @@ def run(
     lat, jit = args.latency
     recorder = None
     if args.animate:
-        from ost_ros.commands.core import check_animation
+        from ost_ros.commands.animation import check_animation
         from ost_ros.watch.frames import RealtimeRecorder
 
         check_animation(args)
@@ -251,7 +251,7 @@ def run(
     if args.plot:
         _plot(args.plot, scenario, result, report)
     if recorder is not None:
-        from ost_ros.commands.core import write_animation
+        from ost_ros.commands.animation import write_animation
 
         heading = f"latency {report.to_dict()['latency'][0]}+0..{report.to_dict()['latency'][1]}"
         write_animation(args, scenario, result, recorder, heading=heading)
