@@ -1,7 +1,8 @@
 """``ost sim SCENARIO --latency L[:J]``: the run without a barrier, in process — the realtime
 runtimes on a discrete-event network whose copies of each message take L + U{0..J} steps
 (seeded), with speed noise and stalls as options. Output as ``ost sim``; JSON adds ``mode``,
-``latency``, ``disagreements`` and each agent's largest lag (docs/realtime.md)."""
+``latency``, ``disagreements`` and each agent's largest lag (docs/realtime.md). ``--plot`` and
+``--animate`` draw it with who was in the team when."""
 
 from __future__ import annotations
 
@@ -156,12 +157,8 @@ def check(args: argparse.Namespace) -> None:
             if given:
                 raise UsageError(f"{flag} needs --latency (the run without a barrier)")
         return
-    for flag, given in (
-        ("--animate", bool(args.animate)),
-        ("--engine", args.engine != "auto"),
-    ):
-        if given:
-            raise UsageError(f"{flag} is for the lockstep engines, not with --latency")
+    if args.engine != "auto":
+        raise UsageError("--engine is for the lockstep engines, not with --latency")
 
 
 def _faults(args: argparse.Namespace, scenario: Scenario, failures: dict[int, int]) -> dict[int, int]:
@@ -217,6 +214,13 @@ def run(
         raise UsageError(f"--latency: {exc}") from None
     joins = _faults(args, scenario, failures)
     lat, jit = args.latency
+    recorder = None
+    if args.animate:
+        from ost_ros.commands.animation import check_animation
+        from ost_ros.watch.frames import RealtimeRecorder
+
+        check_animation(args)
+        recorder = RealtimeRecorder(scenario, every=args.every)
     result, report = run_realtime(
         scenario,
         args.protocol,
@@ -232,10 +236,16 @@ def run(
         joins={a: float(t) for a, t in joins.items()},
         failure_timeout=args.failure_timeout or 10.0,
         splits=[Split(g, float(t), float(s)) for g, t, s in args.split],
+        observe=recorder,
     )
     result.lower_bound = lower_bound(scenario).value
     if args.plot:
         _plot(args.plot, scenario, result, report)
+    if recorder is not None:
+        from ost_ros.commands.animation import write_animation
+
+        heading = f"latency {report.to_dict()['latency'][0]}+0..{report.to_dict()['latency'][1]}"
+        write_animation(args, scenario, result, recorder, heading=heading)
     if args.json:
         print(json.dumps(result.to_dict() | report.to_dict(), indent=1))
     else:

@@ -13,14 +13,14 @@ import argparse
 import json
 import sys
 
-from ost_ros.commands.args import OneLineParser, leaf
-from ost_ros.commands.core import (
+from ost_ros.commands.animation import (
     add_animate_arguments,
     add_progress_argument,
     check_animation,
     frame_recorder,
     write_animation,
 )
+from ost_ros.commands.args import OneLineParser, leaf
 from ost_ros.errors import UsageError
 
 

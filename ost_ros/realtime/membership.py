@@ -27,6 +27,13 @@ from dataclasses import dataclass, field
 
 from ost_ros.realtime.messages import MONITOR, Back, Envelope, Hello, Mark, Need
 
+# Where a robot stands in the team at a time, as an observer of the run sees it (the animation):
+IN = ""  # a member
+SILENT = "silent"  # its process stopped, not declared yet (every batch waits for it)
+OUT = "out"  # declared out, not back yet (its base stopped)
+DEAD = "dead"  # failed for good
+ABSENT = "absent"  # not joined yet
+
 
 @dataclass
 class Declaration:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, cast
+from typing import Any, Protocol, cast
 
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines.common import finish_result, step_limit
@@ -32,7 +32,7 @@ from ost_ros.realtime.agent import (
 )
 from ost_ros.realtime.base import BaseMirror, mirror_of
 from ost_ros.realtime.comms import RtAuctionComm, RtCcpComm, RtGreedyComm, RtNcpComm
-from ost_ros.realtime.membership import MONITOR, Monitor
+from ost_ros.realtime.membership import ABSENT, DEAD, IN, MONITOR, OUT, SILENT, Monitor
 from ost_ros.realtime.messages import Back, Digest, Envelope, Mark, Need, ObjectInfo
 from ost_ros.realtime.net import DELIVER, KILL, WAKE, WORLD, EventQueue, Latency, Network, Split
 from ost_ros.realtime.world import CarryStarted, Detection, Feedback, GoalResult, RealtimeWorld
@@ -157,6 +157,16 @@ def _n(x: float) -> Any:
     return int(x) if float(x).is_integer() else round(x, 3)
 
 
+class Observer(Protocol):
+    """Watches a run (the animation's frames, ``ost sim --latency … --animate``) and never
+    changes it: :meth:`advance` each time the run's clock moves on — nothing happens from ``now``
+    (every event at it handled) until ``until`` —, :meth:`end` once the run is over."""
+
+    def advance(self, run: _Run, now: float, until: float) -> None: ...
+
+    def end(self, run: _Run) -> None: ...
+
+
 @dataclass
 class _Run:
     world: RealtimeWorld
@@ -190,6 +200,27 @@ class _Run:
     )  # -> (stamp, sender, seq)
     _ticks: dict[int, float] = field(default_factory=dict)  # agent -> its next base clock (base_lag)
     _world_times: set[float] = field(default_factory=set)
+    observer: Observer | None = None  # watches the run (reads only)
+
+    def team_at(self, now: float) -> tuple[dict[int, str], Split | None]:
+        """Who is in the team at ``now`` as an observer sees it — per robot IN, SILENT (its
+        process stopped, not declared yet), OUT (declared, not back), DEAD or ABSENT (not joined
+        yet) — and the partition in force, if any (reads only)."""
+        joins = dict(self.report.joins)
+        team = {}
+        for a in self.agents:
+            if a not in self.live or a in self.world.failed:
+                team[a] = DEAD
+            elif a in joins and now < joins[a]:
+                team[a] = ABSENT
+            elif a in self.world.outs:
+                team[a] = OUT
+            elif a in self.frozen:
+                team[a] = SILENT
+            else:
+                team[a] = IN
+        split = next((sp for sp in self.net.splits if sp.start <= now < sp.start + sp.steps), None)
+        return team, split
 
     def base_event(self, ev: Any) -> None:
         """A base's event for the robots' pictures (a tracking world's GoalStarted and Stalled go
@@ -342,6 +373,8 @@ class _Run:
             t, phase, ev = queue.pop()
             if t > limit:
                 return f"not finished after {limit} steps (deadlock or step limit)", now, None
+            if self.observer is not None and t > now:
+                self.observer.advance(self, now, t)
             now = t
             self.report.events += 1
             if phase == WORLD:
@@ -517,6 +550,7 @@ def run_realtime(
     joins: Mapping[int, float] | None = None,
     failure_timeout: float = 10.0,
     splits: Sequence[Split] = (),
+    observe: Observer | None = None,
 ) -> tuple[RunResult, RealtimeReport]:
     """One run without a barrier, in process; the result (as ``ost sim`` builds it) and what the
     realtime run adds (agreement, lags, network figures). ``failures``: agent -> the time it
@@ -528,7 +562,8 @@ def run_realtime(
     ``silences``: (agent, from, steps) — the robot's process stops that long (declared out past
     ``failure_timeout`` steps; it comes back when it runs again); ``joins``: agent -> the step it
     joins at (out from the start, until then); ``splits``: partitions, whose copies between
-    groups are held until they heal."""
+    groups are held until they heal; ``observe``: watches the run as it goes (the animation's
+    frames; it changes nothing)."""
     policy = policy or CoordinationPolicy()
     latency = latency or Latency()
     failures = dict(failures or {})
@@ -556,7 +591,7 @@ def run_realtime(
             if not g <= set(run.agents):
                 raise ValueError(f"split: no agents {sorted(g - set(run.agents))}")
     limit = max_steps if max_steps is not None else 2 * bound + slack + sum(s[2] for s in stalls) + away
-    run.base_lag, run.declare_after = base_lag, declare_after
+    run.base_lag, run.declare_after, run.observer = base_lag, declare_after, observe
     if failure_timeout <= 0:
         raise ValueError(f"failure timeout {failure_timeout}: must be > 0")
     if monitor:
@@ -586,6 +621,8 @@ def run_realtime(
     run.report.out_at_end = sorted(run.world.outs)
     run.report.mirror_errors = run.mirror_errors
     run.report.disagreements, run.report.coordinations = disagreements(agents)
+    if observe is not None:
+        observe.end(run)
     return result, run.report
 
 
@@ -622,6 +659,7 @@ def disagreements(agents: Sequence[RealtimeAgent]) -> tuple[int, int]:
 __all__ = [
     "REALTIME",
     "Latency",
+    "Observer",
     "RealtimeReport",
     "check_realtime",
     "make_agent",

@@ -300,6 +300,17 @@ def _first_movable(t: float, period: int) -> float:
 OUT_STATE, FAILED_STATE = "OUT", "FAILED"  # a robot declared out (stopped), one dead (timeline)
 
 
+@dataclass(frozen=True)
+class Snapshot:
+    """Where robots and objects are at a time (:meth:`RealtimeWorld.snapshot`)."""
+
+    positions: tuple[Cell, ...]  # robot cells, in the scenario's agent order
+    states: tuple[str, ...]  # what each robot's base does (its goal's state; FAILED: dead)
+    holding: tuple[int, ...]  # the object a robot holds or carries, -1 for none
+    objects: tuple[Cell, ...]  # object cells, in the scenario's object order
+    delivered: tuple[bool, ...]
+
+
 @dataclass
 class RealtimeWorld:
     """Ground truth of a run without a barrier. Callers pass time in (``at``, ``now``); the world
@@ -376,6 +387,29 @@ class RealtimeWorld:
             if r.start <= t + EPS:
                 return r.cells[min(r.reached_by(t), r.moves)]
         return b.base
+
+    def snapshot(self, t: float) -> Snapshot:
+        """The world at ``t``, a time at or after the last event handled and before the next one
+        (an observer's view — the animation's: it reads, never changes anything), robots and
+        objects in the scenario's order."""
+        bots = [self.bots[a.id] for a in self.scenario.agents]
+        objects, delivered = [], []
+        for spec in self.scenario.objects:
+            o = self.objects[spec.id]
+            cell = o.at
+            run = self._carries.get(spec.id) if o.moving else None
+            if run is not None:
+                r = run.route
+                cell = r.cells[min(r.reached_by(t), r.moves)]
+            objects.append(cell)
+            delivered.append(o.delivered is not None)
+        return Snapshot(
+            positions=tuple(self.position(b.id, t) for b in bots),
+            states=tuple(b.label if b.alive or b.out else FAILED_STATE for b in bots),
+            holding=tuple(b.holding if b.alive and b.kind in ("hold", "carry") else -1 for b in bots),
+            objects=tuple(objects),
+            delivered=tuple(delivered),
+        )
 
     @property
     def survivors(self) -> int:

@@ -3,8 +3,13 @@
 One frame per recorded :class:`~ost_ros.watch.frames.Frame`: the grid with its subareas, each
 robot coloured by its state, objects sized by n_i (labelled with it on small runs) — grey until
 a robot has found them, red once found, green while a group carries them — their destinations,
-a ``k/n`` tag where a group gathers, the step counter and the deliveries so far. GIF through
-Pillow; MP4 through the ffmpeg binary that the ``imageio-ffmpeg`` package ships.
+a ``k/n`` tag where a group gathers, the step counter and the deliveries so far. Frames of a run
+without a barrier also show who is in the team: a robot declared out grey with a dashed edge, a
+silent one (not declared yet) with an orange edge, a dead one crossed, one not joined yet a
+dotted ring at its base (all drawn larger); while a partition holds, each robot's edge is its
+side's colour and the partition is written under the title, beside the latest change in the
+team. GIF through Pillow; MP4 through the ffmpeg binary that the ``imageio-ffmpeg`` package
+ships.
 """
 
 from __future__ import annotations
@@ -19,11 +24,16 @@ import numpy as np
 from ost_ros.errors import OstError
 from ost_ros.messages import FINISH_STATE
 from ost_ros.model import Scenario
-from ost_ros.plot import state_colours
+from ost_ros.plot import MEMBERSHIP_COLOURS, state_colours
+from ost_ros.realtime.membership import ABSENT, DEAD, OUT, SILENT
 from ost_ros.result import RunResult
 from ost_ros.watch.frames import FAILED_STATE, Frame
 
 FORMATS = (".gif", ".mp4")
+# Who is in the team (runs without a barrier): edges of robots silent, out, not there yet; the
+# sides of a partition (edge colours, side 0, 1, ...)
+SILENT_EDGE, OUT_EDGE = "#ff7f00", "#636363"
+SIDES = ("#1f78b4", "#e31a1c", "#33a02c", "#6a3d9a", "#b15928")
 # Objects carry their n_i as text on runs this small (text is the costliest part of a frame).
 LABEL_OBJECTS_UP_TO = 12
 
@@ -82,14 +92,16 @@ def animate(
     path: str | Path,
     fps: int = 20,
     progress: Callable[[int, int], None] | None = None,
+    heading: str = "",
 ) -> Written:
-    """Write the animation; ``progress(i, n)`` is called per frame drawn."""
+    """Write the animation; ``progress(i, n)`` is called per frame drawn; ``heading`` ends the
+    title (e.g. the latency of a run without a barrier)."""
     suffix = check_target(path)
     if fps < 1:
         raise AnimationError(f"fps: {fps} must be at least 1")
     if not frames:
         raise AnimationError("no frames to draw")
-    scene = _Scene(scenario, result)
+    scene = _Scene(scenario, result, team=any(f.team for f in frames), heading=heading)
     try:
         images = (scene.render(f) for f in _counted(frames, progress))
         if suffix == ".mp4":
@@ -154,7 +166,9 @@ class _Scene:
 
     dpi = 72
 
-    def __init__(self, scenario: Scenario, result: RunResult):
+    def __init__(self, scenario: Scenario, result: RunResult, team: bool = False, heading: str = ""):
+        """``team``: the frames say who is in the team (a run without a barrier): a line more
+        under the title, and its legend."""
         import matplotlib
 
         matplotlib.use("Agg")
@@ -162,12 +176,15 @@ class _Scene:
         from matplotlib.lines import Line2D
         from matplotlib.patches import Rectangle
 
-        self.scenario, self.result = scenario, result
+        self.scenario, self.result, self.heading = scenario, result, heading
         g = scenario.grid
         width = 8.0
         map_h = width * g.height / g.width
-        self.fig = plt.figure(figsize=(width, max(map_h, 1.5) + 1.3), dpi=self.dpi)
-        self.ax = self.fig.add_axes((0.03, 0.2, 0.94, 0.7))
+        height = max(map_h, 1.5) + 1.3  # the map, the title above, the legend below
+        extra = 0.45 if team else 0.0  # the team's line, a row more of legend
+        self.fig = plt.figure(figsize=(width, height + extra), dpi=self.dpi)
+        total = height + extra
+        self.ax = self.fig.add_axes((0.03, (0.2 * height + 0.2 * extra) / total, 0.94, 0.7 * height / total))
         ax = self.ax
         for k, area in enumerate(scenario.subareas):
             ax.add_patch(
@@ -213,7 +230,15 @@ class _Scene:
             for _ in scenario.objects
         ]
         self.palette = state_palette(result.protocol)
-        self.title = self.fig.text(0.03, 0.95, "", fontsize=11, va="center")
+        top = 0.05 * height / total  # the title's distance from the top, as a fraction
+        self.title = self.fig.text(0.03, 1 - top, "", fontsize=11, va="center")
+        self.team = team
+        if team:
+            # dead robots crossed; the partition in force and the latest change in the team
+            self.crosses = ax.scatter([], [], s=60, marker="x", c="k", linewidths=1.3, zorder=5)
+            line = 1 - (0.1 * height + 0.2 * extra) / total
+            self.split = self.fig.text(0.03, line, "", fontsize=9, va="center", color="#b15928")
+            self.note = self.fig.text(0.97, line, "", fontsize=9, va="center", ha="right", color="#252525")
         handles = [
             Line2D([], [], ls="", marker="o", mfc=c, mec="k", mew=0.5, label=s.lower())
             for s, c in self.palette.items()
@@ -225,12 +250,26 @@ class _Scene:
             ),
             Line2D([], [], ls="", marker="x", color="#3182bd", label="destination"),
         ]
+        if team:
+
+            def ring(face: str, edge: str, label: str) -> Line2D:
+                return Line2D([], [], ls="", marker="o", mfc=face, mec=edge, mew=1.2, label=label)
+
+            handles += [
+                ring(MEMBERSHIP_COLOURS["OUT"], OUT_EDGE, "declared out"),
+                ring("w", SILENT_EDGE, "silent (not declared)"),
+                Line2D([], [], ls="", marker="x", color="k", label="dead"),
+                ring("none", OUT_EDGE, "not joined yet"),
+                ring("w", SIDES[0], "partition: edge = side"),
+            ]
         self.fig.legend(
             handles=handles, loc="lower center", ncol=min(len(handles), 6), fontsize=7, frameon=False
         )
         # Blitting: the background (grid, areas, destinations, legend) is drawn once; a frame
         # restores it and draws only what moves (~10x faster than drawing the figure each time).
         self.dynamic = [self.objects, *self.labels, *self.tags, self.robots, self.title]
+        if team:
+            self.dynamic += [self.crosses, self.split, self.note]
         for artist in self.dynamic:
             artist.set_animated(True)
         canvas: Any = self.fig.canvas  # Agg: copy_from_bbox, restore_region, buffer_rgba
@@ -287,8 +326,49 @@ class _Scene:
                 tag.set_position((at[k, 0] + 1.5, at[k, 1] - 1.5))
         self.robots.set_offsets(frame.positions.astype(float))
         self.robots.set_facecolor([self.palette.get(s, "#969696") for s in frame.states])
+        if self.team:
+            self._draw_team(frame)
         delivered = int(frame.delivered.sum())
         self.title.set_text(
             f"{self.result.protocol.upper()}  step {frame.t:>6}   delivered {delivered}/{n_obj}   "
             f"N={self.scenario.n_agents}  {self.scenario.grid.width}×{self.scenario.grid.height}"
+            + (f"   {self.heading}" if self.heading else "")
         )
+
+    def _draw_team(self, frame: Frame) -> None:
+        """Who is in the team: faces, edges and crosses of the robots; the partition, the news."""
+        team = frame.team or ("",) * len(frame.states)
+        faces: list[str] = []
+        edges: list[str] = []
+        widths: list[float] = []
+        styles: list[Any] = []
+        sizes: list[float] = []
+        for k, (state, where) in enumerate(zip(frame.states, team)):
+            face, edge, width, style, size = self.palette.get(state, "#969696"), "k", 0.7, "solid", 34
+            if frame.sides and frame.sides[k] >= 0:
+                edge, width, size = SIDES[frame.sides[k] % len(SIDES)], 1.6, 48
+            if where == OUT:
+                face, edge, width, style, size = MEMBERSHIP_COLOURS["OUT"], OUT_EDGE, 1.3, "dashed", 70
+            elif where == SILENT:
+                edge, width, size = SILENT_EDGE, 2.0, 70
+            elif where == ABSENT:
+                face, edge, width, style, size = "none", OUT_EDGE, 1.3, "dotted", 70
+            elif where == DEAD:
+                size = 48
+            faces.append(face)
+            edges.append(edge)
+            widths.append(width)
+            styles.append(style)
+            sizes.append(size)
+        self.robots.set_facecolor(faces)
+        self.robots.set_edgecolor(edges)
+        self.robots.set_linewidth(widths)
+        self.robots.set_linestyle(styles)
+        self.robots.set_sizes(sizes)
+        dead = np.array([where == DEAD for where in team], dtype=bool)
+        self.crosses.set_offsets(frame.positions[dead].astype(float) if dead.any() else np.empty((0, 2)))
+        self.crosses.set_visible(bool(dead.any()))
+        self.split.set_text(f"partition {frame.split}" if frame.split else "")
+        self.split.set_visible(bool(frame.split))
+        self.note.set_text(frame.note)
+        self.note.set_visible(bool(frame.note))

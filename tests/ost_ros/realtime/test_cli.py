@@ -71,7 +71,9 @@ def test_the_improved_planner_and_greedy_run_without_a_barrier(scenario, args):
         (("--latency", 1, "--stall", "9:2:3"), "no agent 9"),
         (("--latency", 1, "--speed-jitter", "-0.5"), "must be ≥ 0"),
         (("--latency", 1, "--protocol", "hcp"), "hcp does not run without a barrier"),
-        (("--latency", 1, "--animate", "x.gif"), "--animate is for the lockstep engines"),
+        (("--latency", 1, "--engine", "step"), "--engine is for the lockstep engines"),
+        (("--latency", 1, "--animate", "x.avi"), "--animate: x.avi: unsupported format '.avi'"),
+        (("--latency", 1, "--animate", "/nonexistent/x.gif"), "no such directory"),
         (("--latency", 1, "--plot", "/nonexistent/x.png"), "/nonexistent/x.png: cannot write"),
         (("--latency", 1, "--fail", "9:3"), "no such agent"),
     ],
@@ -134,3 +136,38 @@ def test_the_plot_of_a_run_without_a_barrier_shows_who_was_out_when(scenario, tm
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     tl = Timeline.of_labels({1: [(0.0, "SEARCHING"), (38.5, "OUT"), (120.0, "DECISION")]}, 200.0)
     assert tl.runs[1] == [["SEARCHING", 0, 38], ["OUT", 39, 119], ["DECISION", 120, 199]]
+
+
+def test_the_animation_of_a_run_without_a_barrier(scenario, tmp_path):
+    """A frame every K steps plus every decision point (in the team too), as the recorder keeps
+    them in process; the run's output is the same with or without it."""
+    from PIL import Image
+
+    from ost_ros.model import Grid
+    from ost_ros.realtime.net import Latency, Split
+    from ost_ros.realtime.run import run_realtime
+    from ost_ros.scenario import load_scenario
+    from ost_ros.watch.frames import RealtimeRecorder
+
+    faults = ("--latency", "4:4", "--silence", "1:30:60", "--join", "3:50", "--split", "0,1/2,3:100:40")
+    gif = tmp_path / "run.gif"
+    r = ost("sim", scenario, *faults, "--json", "--animate", gif, "--every", 20)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout == ost("sim", scenario, *faults, "--json").stdout  # watching changes nothing
+    s = load_scenario(scenario)
+    assert s.grid == Grid(40, 20)
+    rec = RealtimeRecorder(s, every=20)
+    run_realtime(
+        s,
+        latency=Latency(4, 4),
+        silences=[(1, 30.0, 60.0)],
+        joins={3: 50.0},
+        splits=[Split((frozenset({0, 1}), frozenset({2, 3})), 100.0, 40.0)],
+        observe=rec,
+    )
+    n = len(rec.finish())
+    assert f"animation: {gif} ({n} frames" in r.stderr
+    with Image.open(gif) as im:
+        assert im.n_frames == n
+    mp4 = ost("sim", scenario, "--latency", "4:4", "--animate", tmp_path / "run.mp4", "--every", 50)
+    assert mp4.returncode == 0 and (tmp_path / "run.mp4").stat().st_size > 0, mp4.stderr

@@ -1,6 +1,7 @@
 """Animations: GIF and MP4 files with one picture per frame; bad targets are one-line errors
 before any run (``ost sim --animate``)."""
 
+import dataclasses
 import re
 import subprocess
 import sys
@@ -80,3 +81,33 @@ def test_cli_animates_and_refuses_bad_input(tmp_path):
         assert bad.returncode == 2, bad.stderr
         assert why in bad.stderr and "Traceback" not in bad.stderr
         assert len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_frames_of_a_run_without_a_barrier_show_the_team(tmp_path):
+    """The same scene, a line and a legend row more: who is in the team, the partition."""
+    from ost_ros.realtime.net import Latency, Split
+    from ost_ros.realtime.run import run_realtime
+    from ost_ros.watch.frames import RealtimeRecorder
+
+    scenario = generate_scenario(4, 6, 1, Grid(40, 16), 3)
+    rec = RealtimeRecorder(scenario, every=10)
+    result, _ = run_realtime(
+        scenario,
+        latency=Latency(3, 3),
+        silences=[(1, 20.0, 40.0)],
+        joins={3: 30.0},
+        failures={2: 80},
+        splits=[Split((frozenset({0, 1}), frozenset({2, 3})), 50.0, 20.0)],
+        observe=rec,
+    )
+    frames = rec.finish()
+    out = animate(scenario, result, frames, tmp_path / "rt.gif", heading="latency 3+0..3")
+    with Image.open(tmp_path / "rt.gif") as im:
+        assert im.n_frames == len(frames)
+        height = im.size[1]
+    lockstep = animate(
+        scenario, result, [dataclasses.replace(f, team=()) for f in frames[:3]], tmp_path / "ls.gif"
+    )
+    with Image.open(lockstep.path) as im:
+        assert im.size[1] < height  # (the lockstep's frames keep their size)
+    assert out.frames == len(frames)
