@@ -2,7 +2,8 @@
 
     flock /tmp/ost-dds.lock .venv/bin/python benchmarks/bench_realtime_dds.py \\
         [--rtf 100,300,1000,3000] [--agents 10] [--objects 20] [--width 500] [--height 200]
-        [--seeds 1] [--repeat 5] [--clock-hz HZ] [--large] [--large-rtf 20,100] [--out DIR]
+        [--seeds 1] [--repeat 5] [--clock-hz HZ] [--membership node|world] [--large] [--large-rtf 20,100]
+        [--out DIR]
 
 For each real-time factor (sim steps per wall second) it starts one world node and one process
 per robot with ``ost up --realtime --rtf R`` and reads the run's ``result.json``: every object
@@ -53,6 +54,7 @@ def run_up(
     nmax: int,
     clock_hz: float | None = None,
     size: tuple[int, int] = (500, 200),
+    membership: str | None = None,
 ) -> dict:
     """One ``ost up`` run; its result with the wall and CPU seconds it took."""
     d = Path(tempfile.mkdtemp(prefix="ost-bench-rt-"))
@@ -63,6 +65,8 @@ def run_up(
         cmd += ["--realtime", "--rtf", f"{rtf:g}"]
         if clock_hz is not None:
             cmd += ["--clock-hz", f"{clock_hz:g}"]
+        if membership is not None:
+            cmd += ["--membership", membership]
     cpu0, t0 = children_cpu(), time.monotonic()
     proc = subprocess.run(cmd, capture_output=True, text=True)
     wall, cpu = time.monotonic() - t0, children_cpu() - cpu0
@@ -102,6 +106,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--lockstep-max", type=int, default=10, help="the lockstep reference only up to this many agents"
     )
+    ap.add_argument(
+        "--membership",
+        choices=("node", "world"),
+        default=None,
+        help="who runs the monitor (ost up's default)",
+    )
     ap.add_argument("--out", type=Path, default=Path("/tmp/ost_bench_realtime_dds"))
     a = ap.parse_args(argv)
     try:
@@ -119,7 +129,11 @@ def main(argv: list[str] | None = None) -> int:
     if a.large:
         cases.append((50, 200, 10, large, (500, 200)))
     clock = "ost up's default" if a.clock_hz is None else f"{a.clock_hz:g} Hz"
-    lines = [f"machine: {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f} at start; clock {clock}", ""]
+    monitor = f"; membership monitor: {a.membership or 'ost up default'}"
+    lines = [
+        f"machine: {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f} at start; clock {clock}{monitor}",
+        "",
+    ]
     for n, m, nmax, rs, size in cases:
         for seed in range(1, a.seeds + 1):
             lines += [f"N={n}, M={m}, seed {seed}, {size[0]}x{size[1]}, CCP CI=1", "", *head]
@@ -132,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
             for r in rs:
                 spans = []
                 for _ in range(a.repeat):
-                    res = run_up(n, m, seed, r, nmax, a.clock_hz, size)
+                    res = run_up(n, m, seed, r, nmax, a.clock_hz, size, a.membership)
                     ref = ref if ref is not None else sim_makespan(res["_scenario"])
                     spans.append(res["makespan"])
                     lines.append(row(f"realtime rtf {r:g}", res, ref))
