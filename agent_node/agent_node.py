@@ -32,6 +32,7 @@ from ost_ros.lockstep.messages import Acted, AgentReport, Ready, Resend, RunEnd,
 from ost_ros.model import Scenario
 from ost_ros.node import transport as tp
 from ost_ros.node.params import ParameterError, declare_agent, param_from_args, realtime_from_args
+from ost_ros.node.plumbing import Alive
 from ost_ros.node.run import run_node
 from ost_ros.node.signing import node_auth
 from ost_ros.team import TeamInfo
@@ -139,8 +140,7 @@ class AgentRunner:
         lease = node.get_parameter("failure_timeout").value
         if not isinstance(lease, (int, float)) or lease < 0:
             raise ParameterError(f"failure_timeout: {lease!r} must be a non-negative number of seconds")
-        self.pub_alive = node.create_publisher(String, tp.alive_topic(me), tp.alive_qos(float(lease)))
-        self.alive_readers = 0  # readers matched on the alive topic when last looked
+        self.alive = Alive(node, me, float(lease))
         self.die_at = node.get_parameter("die_at_step").value
         self.timer = node.create_timer(0.1, self.on_timer)
 
@@ -167,7 +167,7 @@ class AgentRunner:
             (self.sub_tick, self.sub_tick.get_publisher_count(), 1),
             (self.sub_end, self.sub_end.get_publisher_count(), 1),
             # its one sample must reach the world, not only an observer that matched first
-            (self.pub_alive, self.pub_alive.get_subscription_count(), 1 + k),
+            (self.alive.pub, self.alive.pub.get_subscription_count(), 1 + k),
             (self.pub_resend, self.pub_resend.get_subscription_count(), self.n + k),
             *((pub, pub.get_subscription_count(), self.n + k) for pub in self.kind_pubs.values()),
             *((sub, sub.get_publisher_count(), self.n) for sub in self.kind_subs),
@@ -185,11 +185,12 @@ class AgentRunner:
                 "pub_report",
                 "sub_tick",
                 "sub_end",
-                "pub_alive",
                 "pub_resend",
             ):
                 if getattr(self, name) is old:
                     setattr(self, name, new)
+            if self.alive.pub is old:
+                self.alive.pub = new
             self.kind_pubs = {kind: new if p is old else p for kind, p in self.kind_pubs.items()}
             self.kind_subs = [new if s is old else s for s in self.kind_subs]
 
@@ -210,19 +211,14 @@ class AgentRunner:
                 return
             if not lacking:
                 # One sample asserts this robot's liveliness at once (the world waits for it)
-                self.say_alive()
+                self.alive.say()
                 ready = Ready(self.rt.me, self.protocol, self.fingerprint, self.organisation)
                 self.guard.publish(self.pub_ready, ready)
                 self.ready_sent = True
                 self.world_seen = True
                 self.node.get_logger().info(f"ready: {self.n} agents and the world matched")
             return
-        readers = self.pub_alive.get_subscription_count()
-        if readers > self.alive_readers:
-            # A reader came since (a restarted world): it has not seen the sample, and the
-            # liveliness-changed event alone does not always fire for it.
-            self.say_alive()
-        self.alive_readers = readers  # also when one is gone: its successor counts as new
+        self.alive.again_to_new_readers()  # (a restarted world)
         # The world gone for good: stop instead of waiting forever.
         now = self.node.get_clock().now().nanoseconds * 1e-9
         held = self.rt.held()
@@ -249,12 +245,6 @@ class AgentRunner:
                 self.exit_code, self.done = 1, True
         else:
             self.world_lost_since = None
-
-    def say_alive(self) -> None:
-        """One sample on the alive topic, to every reader matched now: the world starts (or
-        resumes) on it."""
-        self.alive_readers = self.pub_alive.get_subscription_count()
-        self.pub_alive.publish(String(data=f"agent {self.rt.me}"))
 
     # ------------------------------------------------------------------ traffic
 

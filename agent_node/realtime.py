@@ -41,6 +41,7 @@ from ost_ros.lockstep.messages import AgentReport, Ready, RunEnd, Sample, Schedu
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
 from ost_ros.node.params import declare_agent
+from ost_ros.node.plumbing import Alive
 from ost_ros.node.signing import node_auth
 from ost_ros.realtime.agent import AskFeedback, Output, Publish, RealtimeAgent, SendGoal, WakeAt
 from ost_ros.realtime.base import mirror_of, unpack
@@ -178,9 +179,7 @@ class RealtimeAgentNode(Node):
         self.sub_end = tp.subscribe(self, RunEnd, tp.RUN_END, self.on_end, tp.LATCHED_ALL_QOS, g, th)
         self.sub_result = self.create_subscription(String, tp.RESULT, self.on_result, tp.RESULT_QOS)
         lease = self.p["failure_timeout"]
-        self.pub_alive = None
-        if lease > 0:
-            self.pub_alive = self.create_publisher(String, tp.alive_topic(me), tp.alive_qos(float(lease)))
+        self.alive = Alive(self, me, float(lease)) if lease > 0 else None
 
     def lacking(self) -> list[str]:
         """What is not matched yet: every peer on every topic, the world's endpoints."""
@@ -204,7 +203,7 @@ class RealtimeAgentNode(Node):
             ("lost", self.sub_lost.get_publisher_count() >= 1),
             ("digests", self.pub_digests.get_subscription_count() >= 1),
             ("base_goals", self.pub_goals.get_subscription_count() >= 1),
-            ("alive", self.pub_alive is None or self.pub_alive.get_subscription_count() >= 1),
+            ("alive", self.alive is None or self.alive.pub.get_subscription_count() >= 1),
         ):
             if not ok:
                 out.append(what)
@@ -220,8 +219,8 @@ class RealtimeAgentNode(Node):
             return
         self.ready_sent = True
         self.start_timer.cancel()
-        if self.pub_alive is not None:
-            self.pub_alive.publish(String(data=f"agent {self.me}"))
+        if self.alive is not None:
+            self.alive.say()
         ready = Ready(self.me, self.p["protocol"], self.fingerprint, self.p["coordination"])
         self.guard.publish(self.pub_ready, ready)
 

@@ -34,15 +34,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
-from std_msgs.msg import String
 
 from ost_msgs_py import auth, wire
 from ost_ros.lockstep.messages import RunEnd, Sample
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
 from ost_ros.node.params import ParameterError, declare_role, node_scenario
+from ost_ros.node.plumbing import Liveliness
 from ost_ros.node.run import run_node
 from ost_ros.node.signing import NodeAuth, node_auth
 from ost_ros.realtime.membership import Declaration, Monitor
@@ -111,8 +110,6 @@ class Membership:
         self.monitor = Monitor(ids)
         self.heard = {i: Heard() for i in ids}
         self.originals: dict[int, list[tuple[Any, bytes]]] = {i: [] for i in ids}
-        self.suspects: dict[int, float] = {}
-        self.alive_seen: set[int] = set()
         self.waiting: dict[int, Declaration] = {}  # declared, its base's facts to come
         self.started = self.ended = False
         self.failure_timeout = float(p["failure_timeout"])
@@ -138,19 +135,9 @@ class Membership:
         self.sub_needs = tp.subscribe(node, Need, rtp.NEEDS, self.on_mark, q, g, th, skip=other_run)
         self.sub_hellos = tp.subscribe(node, Hello, rtp.HELLOS, self.on_hello, q, g, th, skip=other_run)
         # Liveliness: a robot's lease lapsing makes it a suspect; silent on, it is declared out.
-        self.sub_alive = {}
-        if self.failure_timeout > 0:
-            for i in self.ids:
-                events = SubscriptionEventCallbacks(
-                    liveliness=functools.partial(self.on_liveliness, i), use_default_callbacks=False
-                )
-                self.sub_alive[i] = node.create_subscription(
-                    String,
-                    tp.alive_topic(i),
-                    functools.partial(self.on_alive_sample, i),
-                    tp.alive_qos(self.failure_timeout),
-                    event_callbacks=events,
-                )
+        self.alive = Liveliness(
+            node, self.ids, self.failure_timeout, suspect=lambda _i: self.started and not self.ended
+        )
 
     def lacking(self) -> list[str]:
         """What the run's start waits for on the monitor's side: every robot's writers matched,
@@ -159,7 +146,7 @@ class Membership:
         writers = min((s.get_publisher_count() for s in self.kind_subs), default=n)
         if writers < n or self.sub_marks.get_publisher_count() < n:
             out.append(f"message writers {writers}/{n}")
-        unseen = sorted(set(self.ids) - self.alive_seen) if self.sub_alive else []
+        unseen = self.alive.unseen(self.ids)
         if unseen:
             out.append(f"liveliness from {unseen[:8]}")
         if self.pub_lost.get_subscription_count() < n:
@@ -175,7 +162,7 @@ class Membership:
         self.started = True
         self.on_heard()
         self.originals[sender].append((pub, data))
-        self.suspects.pop(sender, None)
+        self.alive.heard_from(sender)
         if getattr(s.message, "SHARED", True):
             self.monitor.wanted.add(s.step)  # every member will need that batch
         if isinstance(s.message, Back):
@@ -189,7 +176,7 @@ class Membership:
         self.started = True
         self.on_heard()
         self.heard[m.sender].marks.append((m.watermark, m.seq))
-        self.suspects.pop(m.sender, None)
+        self.alive.heard_from(m.sender)
         if isinstance(m, Need):
             self.monitor.wanted.add(m.stamp)
         self.heard_from(m.sender)
@@ -215,23 +202,8 @@ class Membership:
 
     # ------------------------------------------------------------------ silence
 
-    def on_liveliness(self, agent: int, info) -> None:
-        if info.alive_count > 0:
-            self.alive_seen.add(agent)
-            self.suspects.pop(agent, None)
-            return
-        if info.not_alive_count_change > 0 and self.started and not self.ended:
-            self.suspects.setdefault(agent, time.monotonic())
-
-    def on_alive_sample(self, agent: int, _msg=None) -> None:
-        self.alive_seen.add(agent)
-        self.suspects.pop(agent, None)
-
     def check_suspects(self, wall: float) -> None:
-        for agent, since in list(self.suspects.items()):
-            if wall - since >= self.failure_timeout:
-                del self.suspects[agent]
-                self.declare(agent)
+        self.alive.check(wall, self.declare)
 
     def declare(self, agent: int) -> None:
         """The robot is silent too long: declared out with a notice stamped one above the last

@@ -57,16 +57,16 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import String
 
 from ost_msgs_py import auth, wire
 from ost_ros.bounds import lower_bound
-from ost_ros.lockstep.messages import AgentReport, Ready, RunEnd
+from ost_ros.lockstep.messages import AgentReport, RunEnd
 from ost_ros.lockstep.world import result_from_reports
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
 from ost_ros.node.params import ParameterError, declare_role, node_scenario
-from ost_ros.node.run import process_age, write_file
+from ost_ros.node.plumbing import Readiness, Result, SignalFiles
+from ost_ros.node.run import process_age
 from ost_ros.node.signing import node_auth
 from ost_ros.realtime.base import pack
 from ost_ros.realtime.messages import BaseClock, BaseEvent, BaseGoal, BaseStopped, Digest, StopBase
@@ -85,7 +85,6 @@ from ost_ros.runconfig import WORLD, ConfigError, RunConfig
 from ost_ros.scenario import ScenarioError
 from world_node.membership import Membership
 
-PROGRESS_S = 0.25  # the progress file, at most this often (wall)
 POSE_HZ = 10.0  # poses of robots that moved, and the rosgraph clock (wall)
 IDLE_HZ = 2.0  # the bases' clock and the rosgraph clock while nothing happens (wall)
 CLOCK_DELIVERIES = 500.0  # the bases' clock: robots x ticks per second, at most
@@ -203,17 +202,16 @@ class RealtimeWorldNode(Node):
         # bases' clock (a team of 50 at 50 Hz spent more than a core of two taking them)
         self.tick_hz = min(float(p["clock_hz"]), CLOCK_DELIVERIES / len(self.ids))
         self.throttle = tp.Throttle(self.get_logger())
+        self.files = SignalFiles(p, self.throttle)
         self.started = self.done = False
         self.t0 = 0.0  # monotonic time of sim time 0
-        self.ready: dict[int, Ready] = {}
         self.reports: dict[int, AgentReport] = {}
         self.ended: float | None = None  # sim time the world was done at
         self.ended_wall = 0.0
-        self.result_at: float | None = None
         self.completed = False
         self.bring_up_s: float | None = None
         self.created = time.monotonic()
-        self.last_clock = self.progress_at = -1.0
+        self.last_clock = -1.0
         self.live = set(self.ids)  # robots not out (a robot back is in again)
         self.digests: dict[int, dict[int, tuple[str, str]]] = {}  # stamp -> agent -> digest
         self.digest_at: dict[int, float] = {}  # stamp -> when its last digest came (epoch s)
@@ -248,9 +246,9 @@ class RealtimeWorldNode(Node):
         self.pub_base_clock = self.create_publisher(
             wire.ros_type(BaseClock), rtp.BASE_CLOCK, tp.LATEST_QOS, event_callbacks=quiet()
         )
-        self.pub_result = self.create_publisher(String, tp.RESULT, tp.RESULT_QOS)
+        self.result = Result(self, p)
         self.pub_end = self.create_publisher(wire.ros_type(RunEnd), tp.RUN_END, tp.LATCHED_ALL_QOS)
-        self.sub_ready = tp.subscribe(self, Ready, tp.READY, self.on_ready, tp.LATCHED_ALL_QOS, g, th)
+        self.ready = Readiness(self, self.ids, self.fingerprint, g, th)
         self.sub_report = tp.subscribe(
             self, AgentReport, tp.REPORTS, self.on_report, tp.LATCHED_ALL_QOS, g, th
         )
@@ -288,25 +286,11 @@ class RealtimeWorldNode(Node):
 
     # ------------------------------------------------------------------ start
 
-    def on_ready(self, r: Ready) -> None:
-        if r.agent not in self.ids:
-            self.throttle.warn(self.sub_ready.topic_name, f"agent {r.agent}", "not in the scenario's team")
-        elif r.scenario != self.fingerprint:
-            self.throttle.warn(
-                self.sub_ready.topic_name,
-                f"agent {r.agent}",
-                f"loaded scenario {r.scenario}, the world runs {self.fingerprint}",
-            )
-        else:
-            self.ready[r.agent] = r
-
     def lacking(self) -> list[str]:
         """What the start waits for: every robot ready, its writers matched here and the world's
         writers matched there (a sample written before its reader matched is never delivered)."""
         n = len(self.ids)
-        out = [f"ready from agents {[i for i in self.ids if i not in self.ready][:8]}"]
-        if len(self.ready) == n:
-            out = []
+        out = [] if self.ready.complete else [f"ready from agents {self.ready.missing()[:8]}"]
         if self.membership is not None:
             out += self.membership.lacking()
         elif self.sub_stop.get_publisher_count() < 1 or self.pub_stopped.get_subscription_count() < 1:
@@ -334,7 +318,7 @@ class RealtimeWorldNode(Node):
         self.timer = self.create_timer(1.0 / self.tick_hz, self.on_tick)
         self.publish_base_clock(0.0)  # the robots start on it
         self.publish_clock(0.0)
-        _write(self.p["ready_file"], f"{self.bring_up_s or 0.0:.3f}\n", self)
+        self.files.ready(self.bring_up_s)
 
     # ------------------------------------------------------------------ the base
 
@@ -471,10 +455,9 @@ class RealtimeWorldNode(Node):
             with self.lock:
                 self.publish_clock(now)
         self.active = self.always_active
-        if self.result_at is not None:
+        if self.result.at is not None:
             # the agents have read the result (or not, after linger): leave
-            gone = self.sub_goals.get_publisher_count() == 0
-            if self.p["exit_when_done"] and (gone or wall - self.result_at > self.p["linger"]):
+            if self.result.leave(wall, lambda: self.sub_goals.get_publisher_count() == 0):
                 self.done = True
         elif self.ended is not None and wall - self.ended_wall > 10.0:
             missing = [i for i in self.live if i not in self.reports]
@@ -517,13 +500,8 @@ class RealtimeWorldNode(Node):
         self.write_progress(now)
 
     def write_progress(self, now: float, last: bool = False) -> None:
-        """'step delivered objects' for ost up's progress line, at most every PROGRESS_S."""
-        wall = time.monotonic()
-        if not self.p["progress_file"] or (not last and wall - self.progress_at < PROGRESS_S):
-            return
-        self.progress_at = wall
-        delivered = sum(o.delivered is not None for o in self.world.objects.values())
-        _write(self.p["progress_file"], f"{math.floor(now)} {delivered} {len(self.world.objects)}\n", self)
+        """'step delivered objects' for ost up's progress line."""
+        self.files.progress(math.floor(now), self.world.objects.values(), last)
 
     def publish_poses(self, now: float) -> None:
         """The pose of every robot that moved since its last one (standing robots cost nothing)."""
@@ -605,7 +583,7 @@ class RealtimeWorldNode(Node):
         if r.run != self.run or r.agent not in self.ids:
             return
         self.reports[r.agent] = r
-        if self.ended is not None and self.result_at is None and all(i in self.reports for i in self.live):
+        if self.ended is not None and self.result.at is None and all(i in self.reports for i in self.live):
             with self.lock:
                 self.finish()
 
@@ -649,14 +627,7 @@ class RealtimeWorldNode(Node):
             "wall_s": round(wall, 3),
             "bring_up_s": None if self.bring_up_s is None else round(self.bring_up_s, 2),
         }
-        text = json.dumps(data, indent=1)
-        if self.p["result_file"]:
-            try:
-                write_file(self.p["result_file"], text + "\n")
-            except OSError as exc:
-                self.get_logger().error(f"result_file: cannot write {self.p['result_file']} ({exc.strerror})")
-        self.pub_result.publish(String(data=text))
-        self.result_at = time.monotonic()
+        self.result.publish(json.dumps(data, indent=1))
         self.get_logger().info(
             f"result: makespan {result.makespan}, completed {result.completed}, disagreements {bad} "
             f"of {compared}; wall {wall:.1f} s"
@@ -671,12 +642,3 @@ class RealtimeWorldNode(Node):
         self.bases.stop()
         self.bases.destroy_node()
         super().destroy_node()
-
-
-def _write(path: str, text: str, node: Node) -> None:
-    if not path:
-        return
-    try:
-        write_file(path, text)
-    except OSError as exc:
-        node.get_logger().warning(f"cannot write {path} ({exc.strerror})")

@@ -21,7 +21,6 @@ reason that goes into the result.
 from __future__ import annotations
 
 import contextlib
-import functools
 import json
 import os
 import pickle
@@ -32,19 +31,18 @@ import time
 from pathlib import Path
 
 from builtin_interfaces.msg import Time
-from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
 from ost_msgs_py import auth, wire
 from ost_ros.bounds import lower_bound
-from ost_ros.lockstep.messages import Acted, AgentReport, Ready, RunEnd, RunInfo, Tick
+from ost_ros.lockstep.messages import Acted, AgentReport, RunEnd, RunInfo, Tick
 from ost_ros.lockstep.world import ProtocolViolation, WorldRuntime
 from ost_ros.node import transport as tp
 from ost_ros.node.params import ParameterError, declare_role, node_scenario, realtime_from_args
-from ost_ros.node.run import process_age, run_node, write_file
+from ost_ros.node.plumbing import Liveliness, Readiness, Result, SignalFiles
+from ost_ros.node.run import process_age, run_node
 from ost_ros.node.signing import node_auth
 from ost_ros.runconfig import WORLD
 from ost_ros.scenario import dump_scenario
@@ -52,9 +50,6 @@ from world_node.markers import world_markers
 
 # A step taking longer than this is reported (who has not acted yet).
 STALL_S = 5.0
-# How often the progress file may change (a file written and renamed costs ~1-2 ms of the
-# world's time, which the lockstep waits for; a progress line needs no more than this).
-PROGRESS_S = 0.25
 
 
 class WorldNode(Node):
@@ -71,22 +66,14 @@ class WorldNode(Node):
         # run's id comes with its keys: every process knows it from team.yaml.
         run = self.guard.run or secrets.token_hex(6)
         self.rt = WorldRuntime(scenario, p["max_steps"] or None, p["event_skipping"], run=run)
-        self.result_file = p["result_file"]
         self.marker_every = p["marker_every"]
-        self.exit_when_done = p["exit_when_done"]
-        self.linger = p["linger"]
         self.rediscover_s = p["rediscover_s"]
         self.observers = p["observers"]
-        self.progress_file = p["progress_file"]
-        self.ready_file = p["ready_file"]
-        self.progress_shown: tuple[int, int] | None = None
-        self.progress_at = float("-inf")
         self.ids = self.rt.ids
         self.throttle = tp.Throttle(self.get_logger())
-        self.ready: dict[int, Ready] = {}
+        self.files = SignalFiles(p, self.throttle)
         self.started = False
         self.done = False
-        self.result_at: float | None = None
         self.ticks_sent = 0
         # Round trips timed (tick sent → last action in), quiet ones and those with protocol
         # messages apart (benchmarks/bench_ros.py sets them against bench_floor.py's floor).
@@ -114,7 +101,7 @@ class WorldNode(Node):
         self.pub_end = self.create_publisher(
             wire.ros_type(RunEnd), tp.RUN_END, tp.LATCHED_ALL_QOS, event_callbacks=pub()
         )
-        self.pub_result = self.create_publisher(String, tp.RESULT, tp.RESULT_QOS)
+        self.result = Result(self, p)
         self.pub_info = self.create_publisher(
             wire.ros_type(RunInfo), tp.RUN_INFO, tp.LATCHED_ALL_QOS, event_callbacks=pub()
         )
@@ -124,27 +111,22 @@ class WorldNode(Node):
         self.guard.publish(self.pub_info, info)
         g, th = self.guard, self.throttle
         self.sub_acted = tp.subscribe(self, Acted, tp.ACTED, self.on_acted, q, g, th)
-        self.sub_ready = tp.subscribe(self, Ready, tp.READY, self.on_ready, tp.LATCHED_ALL_QOS, g, th)
+        self.ready = Readiness(self, self.ids, self.fingerprint, g, th, then=self.try_start)
         self.sub_report = tp.subscribe(
             self, AgentReport, tp.REPORTS, self.on_report, tp.LATCHED_ALL_QOS, g, th
         )
-        # One liveliness reader per robot: a killed agent process is reported within the lease.
-        self.sub_alive = {}
-        self.alive_seen: set[int] = set()  # agents whose liveliness the world has seen
-        self.suspects: dict[int, float] = {}  # liveliness lost since (monotonic s), not yet failed
+        # One liveliness reader per robot: a killed agent process is reported within the lease;
+        # lost after the start, it fails if the loss lasts another failure_timeout with nothing
+        # heard from it.
         self.failure_timeout = p["failure_timeout"]
-        if p["failure_timeout"] > 0:
-            for i in self.ids:
-                events = SubscriptionEventCallbacks(
-                    liveliness=functools.partial(self.on_liveliness, i), use_default_callbacks=False
-                )
-                self.sub_alive[i] = self.create_subscription(
-                    String,
-                    tp.alive_topic(i),
-                    functools.partial(self.on_alive_sample, i),
-                    tp.alive_qos(p["failure_timeout"]),
-                    event_callbacks=events,
-                )
+        self.alive = Liveliness(
+            self,
+            self.ids,
+            p["failure_timeout"],
+            suspect=lambda i: self.started and self.result.at is None and i not in self.rt.failed,
+            then=self.try_start,
+            say=True,
+        )
         self.timer = self.create_timer(0.1, self.on_timer)
         self.publish_state(self.rt.world.t)
         if self.resumed:
@@ -202,25 +184,12 @@ class WorldNode(Node):
 
     # ------------------------------------------------------------------ start
 
-    def on_ready(self, r: Ready) -> None:
-        if r.agent not in self.ids:
-            self.throttle.warn(self.sub_ready.topic_name, f"agent {r.agent}", "not in the scenario's team")
-        elif r.scenario != self.fingerprint:
-            self.throttle.warn(
-                self.sub_ready.topic_name,
-                f"agent {r.agent}",
-                f"loaded scenario {r.scenario}, the world runs {self.fingerprint}",
-            )
-        else:
-            self.ready[r.agent] = r
-        self.try_start()
-
     def try_start(self) -> None:
         if self.started:
             return
-        if len(self.ready) < len(self.ids) and not self.resumed:
+        if not self.ready.complete and not self.resumed:
             if time.monotonic() - self.stall_since > tp.DISCOVERY_NOTE_S:  # say who is not ready
-                waiting = [i for i in self.ids if i not in self.ready]
+                waiting = self.ready.missing()
                 self.throttle.note(
                     ("start", "world"),
                     f"not starting yet: no ready from agents {waiting[:8]}"
@@ -230,7 +199,7 @@ class WorldNode(Node):
             return
         ticks = [i for i in self.rt.live if self.pub_tick[i].get_subscription_count() < 1 + self.observers]
         writers = self.sub_acted.get_publisher_count()
-        unseen = sorted(set(self.rt.live) - self.alive_seen) if self.sub_alive else []
+        unseen = self.alive.unseen(self.rt.live)
         if ticks or writers < len(self.rt.live) or unseen:
             now = time.monotonic()
             if (ticks or writers < len(self.rt.live)) and self.discovery.for_s(
@@ -262,17 +231,17 @@ class WorldNode(Node):
             self.publish_state(self.rt.world.t)
             self.resend(all_agents=True)
             return
-        protocols = {r.protocol for r in self.ready.values()}
+        protocols = {r.protocol for r in self.ready.of.values()}
         if len(protocols) > 1:
-            self.throttle.warn(self.sub_ready.topic_name, "agents", f"mixed protocols {sorted(protocols)}")
+            self.throttle.warn(self.ready.sub.topic_name, "agents", f"mixed protocols {sorted(protocols)}")
         self.rt.protocol = min(protocols)  # what a failure can be recovered by
-        self.rt.organisation = min(r.organisation for r in self.ready.values())
+        self.rt.organisation = min(r.organisation for r in self.ready.of.values())
         self.started = True
         self.t_start = time.monotonic()
         self.bring_up_s = process_age()
         self.get_logger().info(f"all {len(self.ids)} agents ready; step 0")
         self.send(self.rt.start())
-        self.write_file(self.ready_file, f"{self.bring_up_s:.3f}\n", "ready_file")
+        self.files.ready(self.bring_up_s)
 
     def on_timer(self) -> None:
         now = time.monotonic()
@@ -280,16 +249,15 @@ class WorldNode(Node):
         if not self.started:
             self.try_start()
             return
-        if self.result_at is not None:
+        if self.result.at is not None:
             # Leave once every agent is gone (it has read the result), or after a while.
             # (a failed agent's endpoint stays in the graph until its participant lease ends)
-            gone = self.sub_acted.get_publisher_count() <= len(self.rt.failed)
-            if self.exit_when_done and (gone or now - self.result_at > self.linger):
+            if self.result.leave(now, lambda: self.sub_acted.get_publisher_count() <= len(self.rt.failed)):
                 self.done = True
             return
-        if self.suspects:
-            self.check_suspects(now)
-        if self.result_at is not None:
+        if self.alive.suspects:
+            self.alive.check(now, self.declare_failed)
+        if self.result.at is not None:
             return
         if now - self.last_progress > tp.RESEND_S:
             self.resend()
@@ -349,29 +317,8 @@ class WorldNode(Node):
             self.pub_markers.publish(world_markers(self.rt.world, stamp))
 
     def write_progress(self, last: bool = False) -> None:
-        """'step delivered objects' for a progress line (ost_up.sh on a terminal), when it
-        changed, at most every PROGRESS_S (``last``: now)."""
-        if not self.progress_file:
-            return
-        clock = time.monotonic()
-        if not last and clock - self.progress_at < PROGRESS_S:
-            return
-        self.progress_at = clock
-        w = self.rt.world
-        now = (w.t, sum(o.delivered is not None for o in w.objects.values()))
-        if now == self.progress_shown:
-            return
-        self.progress_shown = now
-        self.write_file(self.progress_file, f"{now[0]} {now[1]} {len(w.objects)}\n", "progress_file")
-
-    def write_file(self, path: str, text: str, what: str) -> None:
-        """A signal file for whoever supervises the run, replaced at once (tmp + rename)."""
-        if not path:
-            return
-        try:
-            write_file(path, text)
-        except OSError as exc:
-            self.throttle.note((what, "world"), f"{what}: cannot write ({exc.strerror})")
+        """'step delivered objects' for a progress line (ost_up.sh on a terminal)."""
+        self.files.progress(self.rt.world.t, self.rt.world.objects.values(), last)
 
     def on_acted(self, a: Acted) -> None:
         if a.run != self.rt.run:  # another run's (a stray): say so whether or not we started
@@ -386,7 +333,7 @@ class WorldNode(Node):
                 self.sub_acted.topic_name, f"agent {a.action.agent}", "action before the run started"
             )
             return
-        self.heard_from(a.action.agent)
+        self.alive.heard_from(a.action.agent)
         try:
             self.rt.accept_acted(a)
         except ProtocolViolation as exc:
@@ -401,41 +348,8 @@ class WorldNode(Node):
 
     # ------------------------------------------------------------------ failures
 
-    def on_liveliness(self, agent: int, info) -> None:
-        """An agent's liveliness changed. Lost after the start makes it a suspect; it fails if
-        the loss lasts another ``failure_timeout`` with nothing heard from it (a lossy network
-        can drop the assertions of a live agent for a whole lease)."""
-        if info.alive_count > 0:
-            self.alive_seen.add(agent)
-            if self.suspects.pop(agent, None) is not None:
-                self.get_logger().info(f"agent {agent}: liveliness back; not failed")
-            self.try_start()
-            return
-        if info.not_alive_count_change <= 0 or not self.started or self.result_at is not None:
-            return
-        if agent not in self.rt.failed:
-            self.suspects.setdefault(agent, time.monotonic())
-
-    def on_alive_sample(self, agent: int, _msg: String | None = None) -> None:
-        """The agent's one sample on its alive topic: it is alive (with 50 agents some
-        liveliness-changed events never fired at the start; the sample always arrives)."""
-        self.alive_seen.add(agent)
-        self.heard_from(agent)
-        self.try_start()
-
-    def heard_from(self, agent: int) -> None:
-        """A message from a suspect: it is alive after all."""
-        if self.suspects.pop(agent, None) is not None:
-            self.get_logger().info(f"agent {agent}: heard from it after its liveliness was lost; not failed")
-
-    def check_suspects(self, now: float) -> None:
-        for agent, since in list(self.suspects.items()):
-            if now - since >= self.failure_timeout:
-                del self.suspects[agent]
-                self.declare_failed(agent)
-
     def declare_failed(self, agent: int) -> None:
-        if self.result_at is not None or agent in self.rt.failed:
+        if self.result.at is not None or agent in self.rt.failed:
             return
         if self.rt.ended is not None:
             self.rt.fail(agent)
@@ -458,28 +372,21 @@ class WorldNode(Node):
     # ------------------------------------------------------------------ end
 
     def on_report(self, r: AgentReport) -> None:
-        self.heard_from(r.agent)
+        self.alive.heard_from(r.agent)
         try:
             self.rt.accept_report(r)
         except ProtocolViolation as exc:
             self.throttle.warn(self.sub_report.topic_name, f"agent {r.agent}", str(exc))
             return
-        if not self.rt.missing_reports and self.result_at is None:
+        if not self.rt.missing_reports and self.result.at is None:
             self.finish()
 
     def finish(self) -> None:
         result = self.rt.result()
         result.lower_bound = lower_bound(self.scenario).value  # as `ost sim` prints it
-        text = json.dumps(result.to_dict(), indent=1)
-        if self.result_file:
-            try:
-                write_file(self.result_file, text + "\n")
-            except OSError as exc:
-                self.get_logger().error(f"result_file: cannot write {self.result_file} ({exc.strerror})")
-        self.pub_result.publish(String(data=text))
-        self.result_at = time.monotonic()
+        out_at = self.result.publish(json.dumps(result.to_dict(), indent=1))
         self.write_progress(last=True)
-        wall = self.result_at - self.t_start
+        wall = out_at - self.t_start
         stats = {
             "wall_s": round(wall, 3),
             "steps": self.rt.world.t,
@@ -499,9 +406,9 @@ class WorldNode(Node):
         self.get_logger().info(
             f"result: makespan {result.makespan}, completed {result.completed}; transport {json.dumps(stats)}"
         )
-        if self.result_file:
+        if self.result.file:
             with contextlib.suppress(OSError):  # the stats are a nicety; the result is written
-                Path(self.result_file + ".transport.json").write_text(json.dumps(stats) + "\n")
+                Path(self.result.file + ".transport.json").write_text(json.dumps(stats) + "\n")
 
     def dropped(self) -> dict[str, int]:
         total = self.guard.counts()

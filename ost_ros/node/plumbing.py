@@ -1,0 +1,240 @@
+"""What every world and agent node does around its runtime, whatever its kind (lockstep, realtime,
+and the kinds to come): once here, so a new node kind composes it instead of copying it.
+
+World side (the lockstep and realtime world nodes; the membership role watches liveliness too):
+
+- :class:`Readiness`: the agents' ``ready`` hand-shakes, one per robot of the team that loaded
+  the world's scenario;
+- :class:`Liveliness`: every robot's ``alive`` topic with its lease — who was seen, who is a
+  suspect (liveliness lost), who is due to be declared failed or out;
+- :class:`SignalFiles`: the files the run's supervisor polls (``ready_file``, ``progress_file``);
+- :class:`Result`: the result's JSON to ``result_file`` and ``result``, and when to leave after it.
+
+Agent side: :class:`Alive`, the robot's ``alive`` topic — its leased liveliness and the one
+sample the world starts on.
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from collections.abc import Callable, Collection, Mapping
+from typing import Any
+
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.subscription import Subscription
+from std_msgs.msg import String
+
+from ost_ros.lockstep.messages import Ready
+from ost_ros.node import transport as tp
+from ost_ros.node.run import write_file
+from ost_ros.node.signing import NodeAuth
+
+# How often the progress file may change (a file written and renamed costs ~1-2 ms of the world's
+# time, which a lockstep waits for; a progress line needs no more than this).
+PROGRESS_S = 0.25
+
+
+class Readiness:
+    """The agents' Ready messages (``ready``, latched): kept for a robot of the scenario's team
+    that loaded the world's scenario; any other dropped with a warning. ``then()`` runs after
+    each one (a world that starts as soon as it can)."""
+
+    def __init__(
+        self,
+        node: Node,
+        ids: tuple[int, ...],
+        fingerprint: str,
+        guard: NodeAuth,
+        throttle: tp.Throttle,
+        then: Callable[[], None] = lambda: None,
+    ):
+        self.ids, self.fingerprint, self.throttle, self.then = ids, fingerprint, throttle, then
+        self.of: dict[int, Ready] = {}  # agent -> its Ready
+        self.sub = tp.subscribe(node, Ready, tp.READY, self.on_ready, tp.LATCHED_ALL_QOS, guard, throttle)
+
+    def on_ready(self, r: Ready) -> None:
+        if r.agent not in self.ids:
+            self.throttle.warn(self.sub.topic_name, f"agent {r.agent}", "not in the scenario's team")
+        elif r.scenario != self.fingerprint:
+            self.throttle.warn(
+                self.sub.topic_name,
+                f"agent {r.agent}",
+                f"loaded scenario {r.scenario}, the world runs {self.fingerprint}",
+            )
+        else:
+            self.of[r.agent] = r
+        self.then()
+
+    @property
+    def complete(self) -> bool:
+        return len(self.of) == len(self.ids)
+
+    def missing(self) -> list[int]:
+        """The robots not ready yet, in team order."""
+        return [i for i in self.ids if i not in self.of]
+
+
+class Liveliness:
+    """One liveliness reader per robot on its alive topic (:func:`~ost_ros.node.transport.alive_qos`
+    with the lease ``lease_s``; none at all when it is 0): a killed robot process is reported
+    within the lease. A robot whose liveliness is lost while ``suspect(agent)`` says it matters
+    becomes a suspect; anything heard from it clears that (a lossy network can drop the
+    assertions of a live robot for a whole lease); a suspect for another lease is due
+    (:meth:`check`). ``then()`` runs after each liveliness seen (a world waiting to start on it);
+    ``say``: log a suspect that turned out alive."""
+
+    def __init__(
+        self,
+        node: Node,
+        ids: tuple[int, ...],
+        lease_s: float,
+        suspect: Callable[[int], bool],
+        then: Callable[[], None] = lambda: None,
+        say: bool = False,
+    ):
+        self.node, self.lease_s, self.suspect, self.then, self.say = node, lease_s, suspect, then, say
+        self.seen: set[int] = set()  # robots whose liveliness (or sample) has come
+        self.suspects: dict[int, float] = {}  # liveliness lost since (monotonic s), not yet due
+        self.subs: dict[int, Subscription] = {}
+        if lease_s > 0:
+            for i in ids:
+                events = SubscriptionEventCallbacks(
+                    liveliness=functools.partial(self.on_liveliness, i), use_default_callbacks=False
+                )
+                self.subs[i] = node.create_subscription(
+                    String,
+                    tp.alive_topic(i),
+                    functools.partial(self.on_sample, i),
+                    tp.alive_qos(lease_s),
+                    event_callbacks=events,
+                )
+
+    def unseen(self, among: Collection[int]) -> list[int]:
+        """Robots of ``among`` whose liveliness has not come (none when nothing is watched)."""
+        return sorted(set(among) - self.seen) if self.subs else []
+
+    def on_liveliness(self, agent: int, info: Any) -> None:
+        if info.alive_count > 0:
+            self.seen.add(agent)
+            if self.suspects.pop(agent, None) is not None and self.say:
+                self.node.get_logger().info(f"agent {agent}: liveliness back; not failed")
+            self.then()
+            return
+        if info.not_alive_count_change > 0 and self.suspect(agent):
+            self.suspects.setdefault(agent, time.monotonic())
+
+    def on_sample(self, agent: int, _msg: String | None = None) -> None:
+        """The robot's one sample on its alive topic: it is alive (with 50 robots some
+        liveliness-changed events never fired at the start; the sample always arrives)."""
+        self.seen.add(agent)
+        self.heard_from(agent)
+        self.then()
+
+    def heard_from(self, agent: int) -> None:
+        """Something from ``agent``: not a suspect (it is alive after all)."""
+        if self.suspects.pop(agent, None) is not None and self.say:
+            self.node.get_logger().info(
+                f"agent {agent}: heard from it after its liveliness was lost; not failed"
+            )
+
+    def check(self, now: float, declare: Callable[[int], None]) -> None:
+        """``declare(agent)`` for each suspect silent for another lease since its loss."""
+        for agent, since in list(self.suspects.items()):
+            if now - since >= self.lease_s:
+                del self.suspects[agent]
+                declare(agent)
+
+
+class SignalFiles:
+    """The files a run's supervisor polls (``ost up``): ``ready_file`` once the run starts (the
+    bring-up, s) and ``progress_file`` (``step delivered objects``) as it goes — each replaced at
+    once; a write error is noted (throttled), never raised: they are a nicety."""
+
+    def __init__(self, p: Mapping[str, Any], throttle: tp.Throttle, who: str = "world"):
+        self.ready_file, self.progress_file = str(p["ready_file"]), str(p["progress_file"])
+        self.throttle, self.who = throttle, who
+        self.progress_at = float("-inf")
+        self.shown: tuple[int, int] | None = None
+
+    def ready(self, bring_up_s: float | None) -> None:
+        self.write(self.ready_file, f"{bring_up_s or 0.0:.3f}\n", "ready_file")
+
+    def progress(self, step: int, objects: Collection[Any], last: bool = False) -> None:
+        """The progress line when it changed, at most every PROGRESS_S (``last``: now);
+        ``objects``: the world's, each with its ``delivered`` (None: not yet)."""
+        if not self.progress_file:
+            return
+        clock = time.monotonic()
+        if not last and clock - self.progress_at < PROGRESS_S:
+            return
+        self.progress_at = clock
+        now = (step, sum(o.delivered is not None for o in objects))
+        if now == self.shown:
+            return
+        self.shown = now
+        self.write(self.progress_file, f"{now[0]} {now[1]} {len(objects)}\n", "progress_file")
+
+    def write(self, path: str, text: str, what: str) -> None:
+        if not path:
+            return
+        try:
+            write_file(path, text)
+        except OSError as exc:
+            self.throttle.note((what, self.who), f"{what}: cannot write ({exc.strerror})")
+
+
+class Result:
+    """The run's result: its JSON to ``result_file`` and on ``result`` (transient local: it stays
+    readable while the world runs); then the world leaves (``exit_when_done``) once every agent
+    is gone — it has read the result — or after ``linger`` s."""
+
+    def __init__(self, node: Node, p: Mapping[str, Any]):
+        self.node = node
+        self.file = str(p["result_file"])
+        self.exit_when_done, self.linger = bool(p["exit_when_done"]), float(p["linger"])
+        self.pub: Publisher = node.create_publisher(String, tp.RESULT, tp.RESULT_QOS)
+        self.at: float | None = None  # monotonic time it went out
+
+    def publish(self, text: str) -> float:
+        """The result out; the monotonic time it went out."""
+        if self.file:
+            try:
+                write_file(self.file, text + "\n")
+            except OSError as exc:
+                self.node.get_logger().error(f"result_file: cannot write {self.file} ({exc.strerror})")
+        self.pub.publish(String(data=text))
+        self.at = time.monotonic()
+        return self.at
+
+    def leave(self, now: float, gone: Callable[[], bool]) -> bool:
+        """Whether the world may leave now: the result is out, and every agent ``gone()``
+        or the linger over."""
+        if self.at is None or not self.exit_when_done:
+            return False
+        return gone() or now - self.at > self.linger
+
+
+class Alive:
+    """A robot's alive topic: its liveliness (AUTOMATIC with the lease ``lease_s``: DDS asserts it
+    from its own thread, so a busy robot is never taken for a dead one) and one sample to every
+    reader matched (:meth:`say`) — the world (or the monitor) starts on it."""
+
+    def __init__(self, node: Node, me: int, lease_s: float):
+        self.me = me
+        self.pub: Publisher = node.create_publisher(String, tp.alive_topic(me), tp.alive_qos(lease_s))
+        self.readers = 0  # readers matched when it last said so
+
+    def say(self) -> None:
+        self.readers = self.pub.get_subscription_count()
+        self.pub.publish(String(data=f"agent {self.me}"))
+
+    def again_to_new_readers(self) -> None:
+        """A reader came since the last sample (a restarted world): it has not seen it, and the
+        liveliness-changed event alone does not always fire for it."""
+        readers = self.pub.get_subscription_count()
+        if readers > self.readers:
+            self.say()
+        self.readers = readers  # also when one is gone: its successor counts as new
