@@ -320,17 +320,17 @@ class RealtimeAgentNode(Node):
         delivery is per match. So when its writers' readers grow again, the robot publishes
         every message it sent again, as it sealed them (a receiver drops the copies it has), and
         its watermark (a Mark: the batches a peer waits for complete). A short cut needs none of
-        this: DDS repairs it (docs/realtime.md, "Partitions over DDS")."""
+        this: DDS repairs it (docs/realtime.md, "Partitions over DDS"). (In process:
+        ``_Run.heal``.)"""
         readers = self.reader_count()
         back, self.readers = readers > self.readers, readers
         if not back or not self.started:
             return
         for pub, data in self.originals:
             self.guard.relay(pub, data)
-        sp = self.rt.batches.speaker
-        if sp.committed >= 0:
-            self.guard.publish(self.pub_marks, Mark(self.me, sp.committed, sp.seq), run=self.run)
         self.said["again"] = self.said.get("again", 0) + 1
+        if not self.done:  # its watermark, the batch it waits for asked again, a Hello if out
+            self.out(self.rt.again(self.now()))
 
     # ------------------------------------------------------------------ what comes in
 

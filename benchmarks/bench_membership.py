@@ -82,7 +82,8 @@ def random_case(seed: int):
         order = [a.id for a in s.agents]
         rnd.shuffle(order)
         groups = (frozenset(order[:cut]), frozenset(order[cut:]))
-        kw["splits"] = [Split(groups, float(rnd.randint(0, 300)), float(rnd.randint(1, 300)))]
+        start, steps = float(rnd.randint(0, 300)), float(rnd.randint(1, 300))
+        kw["splits"] = [Split(groups, start, steps, lost=rnd.random() < 0.5)]  # held or lost
     return s, protocol, policy, kw
 
 
@@ -108,7 +109,7 @@ def judge(s, r, report, dead) -> list[str]:
 
 def promises(runs: int, seed0: int) -> dict:
     tally = {"runs": 0, "broken": 0, "declared": 0, "rejoins": 0, "joins": 0, "kills": 0, "silences": 0}
-    tally["splits"] = 0
+    tally["splits"] = tally["lost"] = 0
     by_protocol: dict[str, int] = {}
     failures = []
     heals: list[float] = []
@@ -131,6 +132,7 @@ def promises(runs: int, seed0: int) -> dict:
         tally["kills"] += len(kw["failures"])
         tally["silences"] += len(kw["silences"])
         tally["splits"] += len(kw.get("splits", ()))
+        tally["lost"] += sum(sp.lost for sp in kw.get("splits", ()))
         if bad:
             tally["broken"] += 1
             failures.append(f"seed {seed} ({name}): {'; '.join(bad)}")
@@ -158,6 +160,7 @@ def costs(seeds=(1, 2, 3)) -> list[tuple[str, list[float]]]:
         ("partition 0–4 / 5–9 for 100 steps (held)", {"splits": [Split(HALVES, 200.0, 100.0)]}),
         ("partition 0–4 / 5–9 for 1000 steps (held)", {"splits": [Split(HALVES, 200.0, 1000.0)]}),
         ("partition 0–4 / 5–9 for 5000 steps (held)", {"splits": [Split(HALVES, 200.0, 5000.0)]}),
+        ("partition 0–4 / 5–9 for 1000 steps (lost)", {"splits": [Split(HALVES, 200.0, 1000.0, lost=True)]}),
     ]
     rows = []
     for label, kw in faults:
@@ -189,7 +192,7 @@ def main() -> int:
         f"{t['runs']} random runs (seeds {a.seed0}..{a.seed0 + a.runs - 1}; "
         + ", ".join(f"{k} {v}" for k, v in sorted(p["protocols"].items()))
         + f"): {t['silences']} silences, {t['kills']} kills, {t['joins']} joins, "
-        f"{t['splits']} partitions (held, 1–300 steps); "
+        f"{t['splits']} partitions ({t['lost']} of them losing what crossed them; 1–300 steps); "
         f"{t['declared']} robots declared out, {t['rejoins']} readmissions. "
         f"Runs that broke a promise: {t['broken']}.",
         "",

@@ -134,6 +134,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "by commas, groups by slashes: 0,1,2/3,4); held, delivered when it heals (repeatable)",
     )
     g.add_argument(
+        "--split-mode",
+        choices=("held", "lost"),
+        default=None,
+        help="what a partition does with what crosses it: holds it until the heal (held, the "
+        "default), or loses it — the robots say it again when it heals (lost)",
+    )
+    g.add_argument(
         "--failure-timeout",
         type=positive,
         default=None,
@@ -152,11 +159,14 @@ def check(args: argparse.Namespace) -> None:
             ("--silence", bool(args.silence)),
             ("--join", bool(args.join)),
             ("--split", bool(args.split)),
+            ("--split-mode", args.split_mode is not None),
             ("--failure-timeout", args.failure_timeout is not None),
         ):
             if given:
                 raise UsageError(f"{flag} needs --latency (the run without a barrier)")
         return
+    if args.split_mode is not None and not args.split:
+        raise UsageError("--split-mode needs --split")
     if args.engine != "auto":
         raise UsageError("--engine is for the lockstep engines, not with --latency")
 
@@ -235,7 +245,7 @@ def run(
         silences=[(a, float(t), float(s)) for a, t, s in args.silence],
         joins={a: float(t) for a, t in joins.items()},
         failure_timeout=args.failure_timeout or 10.0,
-        splits=[Split(g, float(t), float(s)) for g, t, s in args.split],
+        splits=[Split(g, float(t), float(s), lost=args.split_mode == "lost") for g, t, s in args.split],
         observe=recorder,
     )
     result.lower_bound = lower_bound(scenario).value
@@ -264,5 +274,10 @@ def run(
                 f"{m['rejoins']} back, out at the end: {m['out_at_end'] or 'none'}"
             )
         if args.split:
-            print(f"partitions      {len(args.split)}; {report.held} copies held until they healed")
+            what = (
+                f"{report.lost} copies lost, said again when they healed"
+                if args.split_mode == "lost"
+                else f"{report.held} copies held until they healed"
+            )
+            print(f"partitions      {len(args.split)}; {what}")
     return 0 if result.completed and report.disagreements == 0 else 1

@@ -221,6 +221,7 @@ class RealtimeAgent:
     out: bool = False
     incarnation: int = 0
     _hello: int = 0
+    _asked_back: Hello | None = None  # its last Hello (said again to peers back from a partition)
     _hellos: dict[int, Hello] = field(default_factory=dict)
     _revive: bool = False
     rejoins: int = 0
@@ -316,6 +317,19 @@ class RealtimeAgent:
         ):
             self._hellos[payload.sender] = payload
             self._sponsor(now)
+        return self._flush(now)
+
+    def again(self, now: float) -> list[Output]:
+        """Peers cut off are back, and what crossed meanwhile is lost (a partition longer than
+        DDS keeps a peer): its watermark again, and the batch it waits for asked for again (its
+        Needs may be lost too). Its messages again are its node's to send: it keeps them as
+        sealed (``RealtimeAgentNode.readers_back``; in process, ``_Run.heal``)."""
+        self._commit(now)
+        self.batches.ask_again()
+        if self.speaker.committed >= 0:
+            self._out.append(Publish(Mark(self.id, self.speaker.committed, self.speaker.seq)))
+        if self.out and self._asked_back is not None and self._asked_back.incarnation > self.incarnation:
+            self._out.append(Publish(self._asked_back))  # out, it still asks to come back
         return self._flush(now)
 
     def on_result(self, res: GoalResult, now: float) -> list[Output]:
@@ -653,7 +667,8 @@ class RealtimeAgent:
         if self._hello > self.incarnation:
             return  # asked already
         self._hello = self.incarnation + 1
-        self._out.append(Publish(Hello(self.id, self._hello, self.speaker.seq, fb.cell)))
+        self._asked_back = Hello(self.id, self._hello, self.speaker.seq, fb.cell)
+        self._out.append(Publish(self._asked_back))
 
     def _sponsor(self, now: float) -> None:
         """Answer the Hellos of robots its comm has taken out (their notices taken): a stamped

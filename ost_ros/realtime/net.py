@@ -58,13 +58,16 @@ class EventQueue:
 @dataclass(frozen=True)
 class Split:
     """A partition: from step ``start`` for ``steps`` steps, copies between robots of different
-    ``groups`` are held and delivered once it heals (their own delay after that); robots in no
-    group, and the membership monitor, reach everyone (its host, as the world's, stays
-    reachable from every robot)."""
+    ``groups`` are held and delivered once it heals (their own delay after that) — or, ``lost``,
+    never delivered (as DDS loses what a peer it dropped missed: the robots say it again when
+    the peers are back, :meth:`~ost_ros.realtime.run._Run.heal`); robots in no group, and the
+    membership monitor, reach everyone (its host, as the world's, stays reachable from every
+    robot)."""
 
     groups: tuple[frozenset[int], ...]
     start: float
     steps: float
+    lost: bool = False
 
     def __post_init__(self) -> None:
         if self.start < 0 or self.steps <= 0:
@@ -105,7 +108,7 @@ def parse_split(text: str) -> tuple[tuple[frozenset[int], ...], int, int]:
 @dataclass
 class Network:
     """Broadcasts over seeded latencies into an :class:`EventQueue` (``splits``: partitions that
-    hold copies between groups until they heal)."""
+    hold copies between groups until they heal, or lose them)."""
 
     queue: EventQueue
     latency: Latency = Latency()
@@ -113,6 +116,7 @@ class Network:
     sent: int = 0  # copies scheduled
     splits: tuple[Split, ...] = ()
     held: int = 0  # copies a partition held
+    lost: int = 0  # copies a partition lost
     _rng: np.random.Generator = field(init=False)
 
     def __post_init__(self) -> None:
@@ -134,9 +138,12 @@ class Network:
         for r in receivers:
             self.sent += 1
             at = now
-            for sp in self.splits:
-                if sp.holds(sender, r, now):
-                    at = max(at, sp.start + sp.steps)
+            cut = [sp for sp in self.splits if sp.holds(sender, r, now)]
+            if any(sp.lost for sp in cut):
+                self.lost += 1
+                continue
+            for sp in cut:
+                at = max(at, sp.start + sp.steps)
             if at > now:
                 self.held += 1
             self.queue.push(at + self.delay(), DELIVER, (r, payload))

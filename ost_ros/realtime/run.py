@@ -114,6 +114,7 @@ class RealtimeReport:
     out_at_end: list[int] = field(default_factory=list)  # robots out (not dead) when the run ended
     splits: tuple[Split, ...] = ()
     held: int = 0  # copies a partition held until it healed
+    lost: int = 0  # copies a partition lost (said again after it healed)
     # per partition: steps from its heal until every robot had taken the last batch stamped
     # before it (all compute alike again); None: the run ended before
     healed: list[float | None] = field(default_factory=list)
@@ -145,9 +146,11 @@ class RealtimeReport:
                 "out_at_end": self.out_at_end,
                 "splits": [
                     ["/".join(",".join(map(str, sorted(g))) for g in sp.groups), _n(sp.start), _n(sp.steps)]
+                    + (["lost"] if sp.lost else [])
                     for sp in self.splits
                 ],
                 "held": self.held,
+                **({"lost": self.lost} if any(sp.lost for sp in self.splits) else {}),
                 "healed_after": [None if h is None else _n(round(h, 3)) for h in self.healed],
             },
         }
@@ -199,6 +202,7 @@ class _Run:
         default_factory=dict
     )  # -> (stamp, sender, seq)
     _ticks: dict[int, float] = field(default_factory=dict)  # agent -> its next base clock (base_lag)
+    sent: dict[int, list[Envelope]] = field(default_factory=dict)  # agent -> its messages, as sent
     _world_times: set[float] = field(default_factory=set)
     observer: Observer | None = None  # watches the run (reads only)
 
@@ -276,6 +280,8 @@ class _Run:
         self.schedule_world()
 
     def publish(self, agent: int, p: Any, now: float) -> None:
+        if isinstance(p, Envelope):
+            self.sent.setdefault(agent, []).append(p)  # (kept as sent: said again after a cut)
         if isinstance(p, Mark):
             self.report.marks += 1
         elif isinstance(p, Need):
@@ -346,7 +352,10 @@ class _Run:
         ra = self.agents[agent]
         if self.base_lag:
             ra.base_known(now - self.base_lag)
-        if method == "start":
+        if method == "again":
+            self.resend(agent, now)
+            out = ra.again(now)
+        elif method == "start":
             out = ra.start(now)
         elif method == "on_clock":
             out = ra.on_clock(now)
@@ -504,6 +513,22 @@ class _Run:
         self.net.send(now, notice, sorted(self.live))
         self.schedule_world()
 
+    def heal(self, k: int, now: float) -> None:
+        """Partition ``k``, which lost what crossed it, heals: each robot of its groups sees its
+        peers back and says it again (as an agent node does when its writers' readers come
+        back: ``RealtimeAgentNode.readers_back``); a dead robot's messages the monitor holds
+        and relays."""
+        for agent in sorted(frozenset().union(*self.net.splits[k].groups)):
+            if agent in self.live:
+                self.call(agent, "again", None, now)
+            else:
+                self.resend(agent, now)
+
+    def resend(self, agent: int, now: float) -> None:
+        """Every message ``agent`` sent, again, to every robot (a copy it has is dropped)."""
+        for env in self.sent.get(agent, []):
+            self.net.send(now, env, [j for j in sorted(self.live) if j != agent])
+
     def back_sent(self, env: Envelope, now: float) -> None:
         """A member readmits a robot: the first Back in batch order will count. A dead robot
         readmitted (it had asked before it died) is declared again, for that life."""
@@ -600,6 +625,9 @@ def run_realtime(
         where = {o.id: o.destination for o in scenario.objects}
         team = TeamInfo.from_scenario(scenario)
         run.mirrors = {ra.id: mirror_of(team, ra.id, where.__getitem__) for ra in agents}
+    for k, sp in enumerate(splits):
+        if sp.lost:  # (after the copies of its last moment: the robots say it again then)
+            queue.push(sp.start + sp.steps, KILL, ("heal", k))
     for a, t in sorted(failures.items()):
         if a not in run.agents:
             raise ValueError(f"failure of agent {a}: no such agent")
@@ -617,7 +645,7 @@ def run_realtime(
     run.report.splits = tuple(splits)
     run.report.healed = [healed(agents, sp.start + sp.steps, run.live) for sp in splits]
     run.report.labels = run.world.labels
-    run.report.held = run.net.held
+    run.report.held, run.report.lost = run.net.held, run.net.lost
     run.report.out_at_end = sorted(run.world.outs)
     run.report.mirror_errors = run.mirror_errors
     run.report.disagreements, run.report.coordinations = disagreements(agents)

@@ -356,6 +356,11 @@ class Batches:
         msgs = self._pending.get(t, {})
         return [msgs[k] for k in sorted(msgs)]
 
+    def ask_again(self) -> None:
+        """The Needs sent so far may be lost (peers back from a partition that lost them): the
+        next batch lacking is asked for again."""
+        self._asked.clear()
+
     def ask(self, t: int) -> Need | None:
         """A Need for batch t, the first time it is asked for and only if a peer is lacking —
         and only for a batch without messages: a message stamped t reaches every participant,

@@ -109,12 +109,29 @@ def test_a_robot_silent_past_the_timeout_and_one_that_joins(scenario):
         (("--latency", 1, "--split", "0,1/1,2:5:5"), "a robot in two groups"),
         (("--latency", 1, "--split", "0,1:5:5"), "two groups or more"),
         (("--latency", 1, "--split", "0/9:5:5"), "--split: no agents [9]"),
+        (("--latency", 1, "--split-mode", "lost"), "--split-mode needs --split"),
+        (("--split", "0,1/2,3:5:5", "--split-mode", "lost"), "--split needs --latency"),
+        (("--latency", 1, "--split", "0,1/2,3:5:5", "--split-mode", "gone"), "invalid choice: 'gone'"),
     ],
 )
 def test_bad_membership_flags_are_one_line(scenario, args, why):
     r = ost("sim", scenario, *args)
     assert r.returncode == 2 and why in r.stderr and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) <= 2, r.stderr
+
+
+def test_a_partition_that_loses_what_crosses_it_heals_by_the_robots_saying_it_again(scenario):
+    """``--split-mode lost``: copies between the groups are gone (as over DDS once a peer's lease
+    ends); at the heal each robot says its messages and its watermark again, and asks again for
+    the batch it waits for — the same schedule everywhere, every object delivered."""
+    r = ost("sim", scenario, "--latency", "4:4", "--split", "0,1/2,3:20:80", "--split-mode", "lost", "--json")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert d["completed"] and d["disagreements"] == 0
+    m = d["membership"]
+    assert m["splits"] == [["0,1/2,3", 20, 80, "lost"]] and m["lost"] > 0 and m["held"] == 0
+    text = ost("sim", scenario, "--latency", "4:4", "--split", "0,1/2,3:20:80", "--split-mode", "lost")
+    assert f"partitions      1; {m['lost']} copies lost, said again when they healed" in text.stdout
 
 
 def test_a_partition_holds_what_crosses_it_and_the_team_agrees_after_the_heal(scenario):

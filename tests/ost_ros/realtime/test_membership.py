@@ -36,14 +36,16 @@ def faults(draw, s):
 
 @st.composite
 def splits(draw, s):
-    """Sometimes a partition of the team in two, held 1–300 steps."""
+    """Sometimes a partition of the team in two for 1–300 steps, what crosses it held or lost
+    (then said again when it heals)."""
     ids = [a.id for a in s.agents]
     if len(ids) < 2 or not draw(st.booleans()):
         return []
     order = draw(st.permutations(ids))
     cut = draw(st.integers(1, len(ids) - 1))
     groups = (frozenset(order[:cut]), frozenset(order[cut:]))
-    return [Split(groups, float(draw(st.integers(0, 300))), float(draw(st.integers(1, 300))))]
+    start, steps = float(draw(st.integers(0, 300))), float(draw(st.integers(1, 300)))
+    return [Split(groups, start, steps, lost=draw(st.booleans()))]
 
 
 @settings(max_examples=150, deadline=None)
