@@ -79,8 +79,12 @@ class Speaker:
 
     def need(self, stamp: int) -> Need:
         """A request for batch ``stamp``, carrying this participant's own watermark (so nobody
-        waits for a Mark of the one who asks)."""
+        waits for a Mark of the one who asks). Asked ahead — its own clock not past the stamp
+        yet — that watermark is one the batch still waits for: it says it once passed (the
+        monitor, which waits for every member and asks nobody, would wait for it for ever)."""
         self.announced = max(self.announced, self.committed)
+        if stamp > self.committed:
+            self.wanted.add(stamp)
         return Need(self.me, stamp, self.committed, self.seq)
 
     def commit(self, t: int) -> list[Mark]:

@@ -9,7 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ost_ros.coordination import CoordinationPolicy
-from ost_ros.model import Grid
+from ost_ros.messages import ObjectInfo
+from ost_ros.model import AgentSpec, Grid, Scenario, Subarea
+from ost_ros.protocols.ccp import CcpSettings
 from ost_ros.realtime.net import Latency, Split
 from ost_ros.realtime.run import run_realtime
 from ost_ros.scenario import generate_scenario
@@ -158,3 +160,24 @@ def test_a_robot_back_counts_only_what_it_sends_in_its_new_life():
     assert back == [] and b.member(1, 9) and not b.member(1, 8)
     assert b.accept(Envelope(1, 3, 9, found)) and not b.counts(Envelope(1, 2, 9, found))
     assert Back(0, 8, 1, 1, 2, (0, 0)).after == 2
+
+
+def test_a_batch_asked_for_ahead_is_announced_by_the_one_who_asked_once_its_clock_passes():
+    """Found by the property test above: the improved planner asks ahead for the batch that
+    settles a carry (its Need carrying a watermark below it); the monitor then waits for the
+    asker's watermark, and asks nobody — the asker must say it once passed (a deadlock at step 16
+    before: a robot waiting at its object for a batch only the monitor's Mark could complete)."""
+    s = Scenario(
+        grid=Grid(4, 5),
+        partition=(1, 2),
+        agents=(AgentSpec(0, (0, 1), 1, (), ()), AgentSpec(1, (0, 4), 1, (), ())),
+        objects=(ObjectInfo(0, (0, 2), (3, 4), 1), ObjectInfo(1, (2, 2), (0, 0), 2)),
+        nmax=2,
+        subareas=(Subarea(0, 0, 4, 3), Subarea(0, 3, 4, 2)),
+    )
+    r, report = run_realtime(
+        s, "ccp", CoordinationPolicy(ci=1), CcpSettings(planner="improved"),
+        latency=Latency(0, 0), silences=[(1, 0.0, 1.0)], failure_timeout=5.0,
+    )  # fmt: skip
+    assert r.completed, r.error
+    assert report.disagreements == 0 and all(o.delivered is not None for o in r.objects)
