@@ -33,6 +33,7 @@ from typing import Any
 from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from std_msgs.msg import String
 
 from ost_msgs_py import wire
@@ -108,6 +109,7 @@ class RealtimeAgentNode(Node):
         self.die_at = p["die_at_step"]
         self.early: list[Envelope | Mark | Need | Lost | Hello] = []  # said before its start
         self.created = time.monotonic()
+        self.discovery = tp.Unchanged()  # what it lacks, and since when (rediscover_s)
         # The node's ROS clock is the run's sim time (use_sim_time, /clock); its timers run on the
         # steady clock, because it extrapolates sim time between base clock messages at the rtf.
         self.wall = RosClock(clock_type=ClockType.STEADY_TIME)
@@ -181,41 +183,81 @@ class RealtimeAgentNode(Node):
         lease = self.p["failure_timeout"]
         self.alive = Alive(self, me, float(lease)) if lease > 0 else None
 
-    def lacking(self) -> list[str]:
-        """What is not matched yet: every peer on every topic, the world's endpoints."""
-        n, out = len(self.ids), []
-        for kind, pub in self.kind_pubs.items():
-            if pub.get_subscription_count() < n + 1:  # the team and the world
-                out.append(f"{tp.message_topic(kind)} readers")
-        for sub in self.kind_subs:
-            if sub.get_publisher_count() < n + 1:
-                out.append(f"{sub.topic_name} writers")
-        # (the world takes part in the marks: its membership monitor's)
-        if self.pub_marks.get_subscription_count() < n + 1 or self.sub_marks.get_publisher_count() < n + 1:
-            out.append("marks")
-        if self.pub_hellos.get_subscription_count() < n or self.sub_hellos.get_publisher_count() < n:
-            out.append("hellos")
-        if self.pub_needs.get_subscription_count() < n or self.sub_needs.get_publisher_count() < n:
-            out.append("needs")
-        for what, ok in (
-            ("base_clock", self.sub_clock.get_publisher_count() >= 1),
-            ("base", self.sub_base.get_publisher_count() >= 1),
-            ("lost", self.sub_lost.get_publisher_count() >= 1),
-            ("digests", self.pub_digests.get_subscription_count() >= 1),
-            ("base_goals", self.pub_goals.get_subscription_count() >= 1),
-            ("alive", self.alive is None or self.alive.pub.get_subscription_count() >= 1),
-        ):
-            if not ok:
-                out.append(what)
+    # the endpoints a robot has one of, by attribute (renewed in place: rediscover)
+    SINGLE = (
+        "pub_marks",
+        "sub_marks",
+        "pub_needs",
+        "sub_needs",
+        "sub_lost",
+        "pub_hellos",
+        "sub_hellos",
+        "pub_digests",
+        "sub_clock",
+        "sub_base",
+        "pub_goals",
+    )
+
+    def unmatched(self) -> list[tuple[Any, str, int, int]]:
+        """The endpoints whose matching is not complete: (endpoint, what, matched, needed) —
+        every peer on every topic (the monitor too on the messages and marks), the world's."""
+        n = len(self.ids)
+        counts: list[tuple[Any, str, int]] = [
+            *((pub, f"{tp.message_topic(kind)} readers", n + 1) for kind, pub in self.kind_pubs.items()),
+            *((sub, f"{sub.topic_name} writers", n + 1) for sub in self.kind_subs),
+            (self.pub_marks, "marks readers", n + 1),
+            (self.sub_marks, "marks writers", n + 1),
+            (self.pub_hellos, "hellos readers", n),
+            (self.sub_hellos, "hellos writers", n),
+            (self.pub_needs, "needs readers", n),
+            (self.sub_needs, "needs writers", n),
+            (self.sub_clock, "base_clock", 1),
+            (self.sub_base, "base", 1),
+            (self.sub_lost, "lost", 1),
+            (self.pub_digests, "digests", 1),
+            (self.pub_goals, "base_goals", 1),
+        ]
+        if self.alive is not None:
+            counts.append((self.alive.pub, "alive", 1))
+        out = []
+        for e, what, need in counts:
+            have = e.get_subscription_count() if isinstance(e, Publisher) else e.get_publisher_count()
+            if have < need:
+                out.append((e, what, have, need))
         return out
+
+    def lacking(self) -> list[str]:
+        """What is not matched yet, by name."""
+        return [what for _, what, _, _ in self.unmatched()]
+
+    def rediscover(self, endpoints: list[Any]) -> None:
+        """Create ``endpoints`` anew (the ``rediscover_s`` parameter: Fast DDS now and then never
+        pairs one writer with one reader, docs/ros.md); before the run, so nothing is in flight."""
+        for old in endpoints:
+            new = tp.renew(self, old)
+            for name in self.SINGLE:
+                if getattr(self, name) is old:
+                    setattr(self, name, new)
+            if self.alive is not None and self.alive.pub is old:
+                self.alive.pub = new
+            self.kind_pubs = {kind: new if p is old else p for kind, p in self.kind_pubs.items()}
+            self.kind_subs = [new if s is old else s for s in self.kind_subs]
 
     def try_ready(self) -> None:
         if self.ready_sent:
             return
-        lacking = self.lacking()
-        if lacking:
-            if time.monotonic() - self.created > tp.DISCOVERY_NOTE_S:
+        unmatched = self.unmatched()
+        if unmatched:
+            lacking, now = [what for _, what, _, _ in unmatched], time.monotonic()
+            if now - self.created > tp.DISCOVERY_NOTE_S:
                 self.throttle.note(("start", "agent"), f"not ready yet: not matched {lacking[:8]}")
+            if self.discovery.for_s(lacking, now) > self.p["rediscover_s"]:
+                self.get_logger().warning(
+                    f"discovery has not moved for {self.p['rediscover_s']:g} s ({', '.join(lacking[:6])}): "
+                    "creating those endpoints anew"
+                )
+                self.rediscover([e for e, _, _, _ in unmatched])
+                self.discovery.restart(now)
             return
         self.ready_sent = True
         self.start_timer.cancel()

@@ -76,16 +76,20 @@ def alive_topic(agent_id: int) -> str:
 DISCOVERY_NOTE_S = 60.0
 
 
-def alive_qos(lease_s: float) -> QoSProfile:
-    """AUTOMATIC liveliness with a finite lease: the DDS participant asserts it from its own
-    thread, so a busy Python agent is never mistaken for a dead one; a killed process stops
-    asserting and the world's reader reports it within the lease. ``lease_s`` <= 0: no lease."""
+def alive_qos(lease_s: float, writer: bool = False) -> QoSProfile:
+    """A finite liveliness lease (``lease_s`` <= 0: none). The robot's writer offers
+    MANUAL_BY_TOPIC: :class:`~ost_ros.node.plumbing.Alive` asserts it from a thread of its own, so
+    the assertion goes to that topic's readers only (the world's or the monitor's) as a heartbeat
+    — AUTOMATIC would have the participant assert it to every participant of the domain, each
+    robot receiving every other's: at N=50 most of an idle robot's CPU (docs/realtime.md). A
+    killed or stopped process stops asserting and the reader reports it within the lease. The
+    readers request AUTOMATIC, which any writer's liveliness satisfies."""
     return QoSProfile(
         depth=1,
         history=HistoryPolicy.KEEP_LAST,
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.VOLATILE,
-        liveliness=LivelinessPolicy.AUTOMATIC,
+        liveliness=LivelinessPolicy.MANUAL_BY_TOPIC if writer else LivelinessPolicy.AUTOMATIC,
         liveliness_lease_duration=Duration(seconds=max(lease_s, 0.0)),
     )  # 0: infinite
 

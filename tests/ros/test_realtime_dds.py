@@ -99,9 +99,10 @@ def test_a_robot_killed_mid_run_is_recovered_from(tmp_path, monitor):
     assert "agent_2" in run.stderr and "died mid-run" in run.stderr
 
 
-def _run_prepared(tmp_path, edit, extra=None, options=()):
+def _run_prepared(tmp_path, edit, extra=None, options=(), late=None):
     """A prepared realtime run (``ost up --prepare``) started by the test, each process's command
-    changed by ``edit(name, argv)``, ``extra`` processes beside it; its result and processes."""
+    changed by ``edit(name, argv)``, ``extra`` processes beside it; ``late=(name, who, text)``
+    starts process ``name`` only once ``who`` has logged ``text``. Its result and processes."""
     path = _scenario(tmp_path)
     run_dir = tmp_path / "run"
     prep = [str(BIN / "ost"), "up", "--prepare", "--scenario", str(path), "--realtime", "--rtf", "50",
@@ -115,7 +116,11 @@ def _run_prepared(tmp_path, edit, extra=None, options=()):
         for name, argv in (extra or (lambda _agents: {}))(agents).items():
             procs.run(name, argv)
         for name, _host, cmd in lines:
-            procs.run(name, edit(name, shlex.split(cmd)))
+            if late is None or name != late[0]:
+                procs.run(name, edit(name, shlex.split(cmd)))
+        if late is not None:
+            procs.wait_for(late[1], late[2], timeout=60)
+            procs.run(late[0], edit(late[0], shlex.split(next(c for n, _h, c in lines if n == late[0]))))
         end = time.monotonic() + 180
         while not (run_dir / "result.json").exists():  # written whole (tmp + rename)
             assert procs.procs["world"].poll() is None, procs.log("world")[-3000:]
@@ -186,6 +191,21 @@ def test_a_robot_that_starts_late_keeps_what_its_peers_said(tmp_path):
     result, _agents, _procs = _run_prepared(tmp_path, late, lambda _agents: relay, ["--insecure"])
     kept_its_promise(result, 6)
     assert max(result["lag"].values()) >= 50  # it did start late: a batch waited 2 s (100 steps) for it
+
+
+def test_endpoints_whose_discovery_stopped_moving_are_renewed_and_carry_the_run(tmp_path):
+    """Fast DDS now and then never pairs one writer with one reader (a team of 50 once waited
+    for good on one robot's ``needs``): a robot creates anew the endpoints whose matching has not
+    moved for ``rediscover_s`` before the start. Here robot 3 is not up yet, so the others' matching
+    stops moving; their renewed endpoints carry the run."""
+
+    def quick(name, argv):
+        return [*argv, "-p", "rediscover_s:=0.5"] if name.startswith("agent_") else argv
+
+    late = ("agent_3", "agent_0", "creating those endpoints anew")
+    result, _agents, procs = _run_prepared(tmp_path, quick, late=late)
+    kept_its_promise(result, 6)
+    assert "Traceback" not in procs.log("agent_0")
 
 
 @pytest.mark.parametrize("when", [80, 150, 300])
