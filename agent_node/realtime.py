@@ -80,6 +80,7 @@ class RealtimeAgentNode(Node):
         ids = tuple(a.id for a in scenario.agents)
         me = p["agent_id"]
         self.me, self.ids, self.p = me, ids, p
+        self.joining = rtp.joining(p["joins"])  # robots not in the team at the start (--join)
         team = TeamInfo.from_scenario(scenario)
         # (the world's membership monitor takes part: every batch waits for its watermark too)
         self.rt: RealtimeAgent = make_agent(
@@ -169,8 +170,9 @@ class RealtimeAgentNode(Node):
         self.sub_clock = tp.subscribe(
             self, BaseClock, rtp.BASE_CLOCK, self.on_base_clock, tp.LATEST_QOS, g, th, skip=other_run
         )
+        # (latched: a robot that joins mid-run gets what its base said before it was up)
         self.sub_base = tp.subscribe(
-            self, BaseEvent, rtp.base_topic(me), self.on_base, q, g, th, skip=other_run
+            self, BaseEvent, rtp.base_topic(me), self.on_base, tp.LATCHED_ALL_QOS, g, th, skip=other_run
         )
         # Its goals for its base, one way: its base's events say what became of them.
         self.pub_goals = self.create_publisher(
@@ -200,8 +202,11 @@ class RealtimeAgentNode(Node):
 
     def unmatched(self) -> list[tuple[Any, str, int, int]]:
         """The endpoints whose matching is not complete: (endpoint, what, matched, needed) —
-        every peer on every topic (the monitor too on the messages and marks), the world's."""
-        n = len(self.ids)
+        every peer on every topic (the monitor too on the messages and marks), the world's. A
+        robot that joins later is not awaited; and one that joins awaits no peer (some may be dead
+        by then): the world's endpoints and the monitor's suffice, and each peer, once matched,
+        says everything again to it (:meth:`readers_back`)."""
+        n = 1 if self.me in self.joining else len(self.ids) - len(self.joining)
         counts: list[tuple[Any, str, int]] = [
             *((pub, f"{tp.message_topic(kind)} readers", n + 1) for kind, pub in self.kind_pubs.items()),
             *((sub, f"{sub.topic_name} writers", n + 1) for sub in self.kind_subs),

@@ -5,16 +5,19 @@
         [--runs 5] [--stop 5] [--at 100] [--agents 6] [--objects 10] [--rtf 20] [--out DIR]
     flock /tmp/ost-dds.lock .venv/bin/python benchmarks/bench_membership_dds.py --split 10 \\
         --agents 10 [--groups 0,1,2,3,4,5/6,7,8,9] ...          (root, nftables)
+    flock /tmp/ost-dds.lock .venv/bin/python benchmarks/bench_membership_dds.py --join --agents 10 ...
 
 Each pair: one ``ost up --realtime`` run of the scenario (``ost generate --agents N --objects M
 --seed 919 --width 120 --height 60 --nmax 3``), and one with the fault from sim time --at: robot
 2's process stopped for --stop wall seconds, then resumed; or (``--split S``) both runs on three
 simulated hosts, the second with ``--split GROUPS:AT:S`` (no traffic between the groups' hosts for
-S wall seconds). Reported: completed runs, disagreements, robots declared out and back, robots out
+S wall seconds); or (``--join``) the second with ``--join 2:AT``: robot 2's process started only
+once the run's sim time reaches --at. Reported: completed runs, disagreements, robots declared out and back, robots out
 at the end, the wall time from the resume to the robot being back in the team (its first goal of
 the new life reached the world) or from the heal to the last robot taking the last batch stamped
-before it (its digest), and the makespan against the run without the fault. Writes
-``membership_dds.md`` (or ``split_dds.md``) into --out (default /tmp/ost_bench_membership_dds);
+before it (its digest), or from the joining robot's process start to its first goal of its
+life in the team, and the makespan against the run without the fault. Writes
+``membership_dds.md`` (``split_dds.md``, ``join_dds.md``) into --out (default /tmp/ost_bench_membership_dds);
 every figure in it is computed from the runs.
 """
 
@@ -82,6 +85,13 @@ def one(
             if m and float(m.group(1)) >= resumed:
                 back_wall = float(m.group(1)) - resumed
                 break
+    if split and "--join" in split:  # from the joining process's start (its pid file) to back
+        started = (d / "run" / "agent_2.pid").stat().st_mtime
+        for line in (d / "run" / "world.log").read_text().splitlines():
+            m = re.search(r"\[(\d+\.\d+)\] \[ost\.world\]: agent 2 back", line)
+            if m:
+                back_wall = float(m.group(1)) - started
+                break
     result["back_after_s"] = back_wall
     return result
 
@@ -98,10 +108,13 @@ def main() -> int:
     ap.add_argument(
         "--groups", default="", help="with --split: the groups (default: the first 60 %% / the rest)"
     )
+    ap.add_argument("--join", action="store_true", help="robot 2 joins at sim time --at instead")
     ap.add_argument("--out", default="/tmp/ost_bench_membership_dds")
     a = ap.parse_args()
     if a.split:
         return splits(a)
+    if a.join:
+        return joins(a)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     scenario = generate(a, out)
@@ -216,6 +229,65 @@ def splits(a: argparse.Namespace) -> int:
         )
     text = "\n".join(lines) + "\n"
     (out / "split_dds.md").write_text(text)
+    print(text)
+    return 0 if all(r["completed"] and r["disagreements"] == 0 for r in rows) else 1
+
+
+def joins(a: argparse.Namespace) -> int:
+    """Pairs of runs, robot 2 joining the second at sim time ``a.at``."""
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    scenario = generate(a, out)
+    rows = []
+    for n in range(a.runs):
+        base = one(scenario, a.rtf, None, a.at)
+        fault = one(scenario, a.rtf, None, a.at, ["--join", f"2:{int(a.at)}"])
+        m = fault.get("membership", {})
+        ((joined),) = m.get("joins", [{}])
+        back = [t for kind, who, t in m.get("events", []) if kind == "back" and who == 2]
+        works = any(2 in o["agents"] and back and o["start"] > back[0] for o in fault["objects"])
+        rows.append(
+            {
+                "completed": bool(base["completed"] and fault["completed"]),
+                "disagreements": base["disagreements"] + fault["disagreements"],
+                "out_at_end": m.get("out_at_end", []),
+                "started": joined.get("started"),
+                "back_sim": back[0] if back else None,
+                "back_after_s": fault["back_after_s"],
+                "works": works,
+                "ratio": fault["makespan"] / base["makespan"] - 1
+                if base["makespan"] and fault["makespan"]
+                else None,
+            }
+        )
+        print(f"  pair {n + 1}/{a.runs}: {rows[-1]}", file=sys.stderr)
+    backs = [r["back_after_s"] for r in rows if r["back_after_s"] is not None]
+    ratios = [r["ratio"] for r in rows if r["ratio"] is not None]
+    lines = [
+        "# A robot that joins over DDS (benchmarks/bench_membership_dds.py --join)",
+        "",
+        f"{a.runs} pairs of runs, N={a.agents}, M={a.objects}, 120×60, rtf {a.rtf:g}; in the second of "
+        f"each pair robot 2's process starts once the run's sim time reaches {a.at:g} (--join 2:{int(a.at)}).",
+        "",
+        "| | |",
+        "|---|---|",
+        f"| both runs completed | {sum(r['completed'] for r in rows)} of {len(rows)} |",
+        f"| disagreements | {sum(r['disagreements'] for r in rows)} |",
+        f"| robots out at the end | {sum(len(r['out_at_end']) for r in rows)} |",
+        f"| the joiner carried an object after joining | {sum(r['works'] for r in rows)} of {len(rows)} |",
+    ]
+    if backs:
+        lines.append(
+            f"| its process start → in the team (wall s) | median {statistics.median(backs):.2f}, "
+            f"max {max(backs):.2f} |"
+        )
+    if ratios:
+        lines.append(
+            f"| makespan vs all in from the start | median {statistics.median(ratios):+.1%} "
+            f"({', '.join(f'{x:+.1%}' for x in ratios)}) |"
+        )
+    text = "\n".join(lines) + "\n"
+    (out / "join_dds.md").write_text(text)
     print(text)
     return 0 if all(r["completed"] and r["disagreements"] == 0 for r in rows) else 1
 

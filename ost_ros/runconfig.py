@@ -169,6 +169,11 @@ def _settings() -> tuple[Setting, ...]:
         S("stall", [], "robot AGENT stands still for S steps from step STEP (repeatable)", "realtime",
           metavar="AGENT:STEP:S", parse=agent_step_steps),
         S("stalls", "", "the stalls (AGENT:STEP:S, comma-separated)", "realtime", W, option=False),
+        S("join", [], "robot AGENT is not in the team at the start: its process starts once the "
+          "run's sim time reaches T, and it joins (repeatable)", "realtime", metavar="AGENT:T",
+          parse=agent_step, launch="only ost up / ost_up.sh start a process late"),
+        S("joins", "", "the robots that join mid-run (AGENT:T, comma-separated): not awaited at "
+          "the start", "realtime", WA, option=False),
         S("noise_seed", 0, "seed of the speed noise", "realtime", W, 0, INT_MAX, metavar="S"),
         S("clock_hz", 50.0, "how often the world ticks (wall Hz): the bases' clock, at most 500 / team size", "realtime", W, 1.0,
           1000.0, metavar="HZ"),
@@ -450,7 +455,7 @@ class RunConfig:
                 if self[name]:
                     raise ConfigError(name, "is for the lockstep run, not with --realtime")
             return
-        named = name_given(self.given, ("rtf", "speed_jitter", "stall", "noise_seed", "clock_hz"))
+        named = name_given(self.given, ("rtf", "speed_jitter", "stall", "noise_seed", "clock_hz", "join"))
         if named:
             raise ConfigError(named, "needs --realtime")
 
@@ -464,6 +469,27 @@ class RunConfig:
     def splits(self) -> list[tuple[tuple[frozenset[int], ...], int, int]]:
         """The network partitions over simulated hosts: (groups, from sim time, for wall s)."""
         return [parse_split(x) for x in self["split"]]
+
+    def joins(self) -> dict[int, int]:
+        """The robots that join mid-run: agent -> the sim time its process starts at (from the
+        option or the nodes' parameter)."""
+        items = self["join"] or [x for x in self["joins"].split(",") if x.strip()]
+        return dict(agent_step(x) for x in items)
+
+    def check_joins(self, team: list[int]) -> None:
+        """--join against the team (once the scenario is known): one error each."""
+        joins, kills = self.joins(), self.kills()
+        for a, t in sorted(joins.items()):
+            if a not in team:
+                raise ConfigError("join", f"agent {a} is not in the team {team}")
+            if t <= 0:
+                raise ConfigError(
+                    "join", f"agent {a} at sim time {t}: must be > 0 (at 0 it is simply in the team)"
+                )
+            if a in kills:
+                raise ConfigError("join", f"agent {a} both joins and is killed (--kill-agent)")
+        if joins and len(joins) >= len(team):
+            raise ConfigError("join", "every robot would join later: someone must start the run")
 
     def kills(self) -> dict[int, int]:
         return dict(agent_step(x) for x in self["kill_agent"])
@@ -487,6 +513,8 @@ class RunConfig:
             out["foxglove_port"] = self["foxglove"] or out["foxglove_port"]
         if role == WORLD and self["stall"]:
             out["stalls"] = ",".join(self["stall"])
+        if role in (WORLD, AGENT) and self["join"]:
+            out["joins"] = ",".join(self["join"])
         out.update(node)
         for name, value in out.items():
             check_value(BY_NAME[name], value)

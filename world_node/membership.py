@@ -60,9 +60,12 @@ class Heard:
     ahead: set[int] = field(default_factory=set)
     marks: list[tuple[int, int]] = field(default_factory=list)  # (watermark, seq) heard
 
+    def has(self, seq: int) -> bool:
+        return seq <= self.contiguous or seq in self.ahead
+
     def message(self, seq: int, watermark: int) -> bool:
         """A message of it arrived; False if held already (the monitor's own relay)."""
-        if seq <= self.contiguous or seq in self.ahead:
+        if self.has(seq):
             return False
         self.ahead.add(seq)
         while self.contiguous + 1 in self.ahead:
@@ -101,8 +104,11 @@ class Membership:
         now: Callable[[], float],
         on_out: Callable[[int, float], None] = lambda a, t: None,
         on_heard: Callable[[], None] = lambda: None,
+        absent: frozenset[int] = frozenset(),
     ):
         self.node, self.ids, self.stop, self.now, self.on_out = node, ids, stop, now, on_out
+        # robots that join mid-run (--join): out from the start, declared once the run starts
+        self.absent = absent
         self.on_heard = on_heard  # (the world ticks faster while robots talk)
         self.guard: NodeAuth = node_auth(p["keys"], p["insecure"], auth.MEMBERSHIP)
         self.run = self.guard.run or ""
@@ -121,14 +127,18 @@ class Membership:
         def other_run(m) -> bool:
             return m.run != self.run
 
-        self.kind_subs = []
+        def known(m) -> bool:  # (a copy it holds: a robot says everything again to a new reader)
+            return other_run(m) or (m.sender in self.heard and self.heard[m.sender].has(m.seq))
+
+        self.kind_subs, self.kind_pubs = [], []
+        self.readers = 0  # readers of its message writers at the last look (a robot that joins)
+        self.looked = 0.0
         for kind in rtp.message_kinds(p["protocol"], p["coordination"]):
             topic = tp.message_topic(kind)
             pub = node.create_publisher(wire.ros_type(kind), topic, q, event_callbacks=quiet())
+            self.kind_pubs.append(pub)
             on = functools.partial(self.on_sample, pub)
-            self.kind_subs.append(
-                tp.subscribe(node, kind, topic, on, q, g, th, keep_bytes=True, skip=other_run)
-            )
+            self.kind_subs.append(tp.subscribe(node, kind, topic, on, q, g, th, keep_bytes=True, skip=known))
         self.pub_lost = node.create_publisher(wire.ros_type(Lost), rtp.LOST, tp.LATCHED_ALL_QOS)
         self.pub_marks = node.create_publisher(wire.ros_type(Mark), rtp.MARKS, q, event_callbacks=quiet())
         self.sub_marks = tp.subscribe(node, Mark, rtp.MARKS, self.on_mark, q, g, th, skip=other_run)
@@ -142,11 +152,11 @@ class Membership:
     def lacking(self) -> list[str]:
         """What the run's start waits for on the monitor's side: every robot's writers matched,
         its liveliness seen, every robot reading notices."""
-        n, out = len(self.ids), []
+        n, out = len(self.ids) - len(self.absent), []
         writers = min((s.get_publisher_count() for s in self.kind_subs), default=n)
         if writers < n or self.sub_marks.get_publisher_count() < n:
             out.append(f"message writers {writers}/{n}")
-        unseen = self.alive.unseen(self.ids)
+        unseen = self.alive.unseen([i for i in self.ids if i not in self.absent])
         if unseen:
             out.append(f"liveliness from {unseen[:8]}")
         if self.pub_lost.get_subscription_count() < n:
@@ -155,11 +165,21 @@ class Membership:
 
     # ------------------------------------------------------------------ what robots say
 
+    def start(self) -> None:
+        """The run has started (the first thing a robot said): the robots that join later are
+        declared out now, before the monitor commits anything — so every batch from the first
+        on counts them out, as it does a robot silent from the start."""
+        if self.started:
+            return
+        self.started = True
+        for a in sorted(self.absent):
+            self.declare(a)
+
     def on_sample(self, pub: Any, s: Sample, data: bytes) -> None:
         sender = s.message.sender
         if sender not in self.heard or not self.heard[sender].message(s.seq, s.watermark):
             return
-        self.started = True
+        self.start()
         self.on_heard()
         self.originals[sender].append((pub, data))
         self.alive.heard_from(sender)
@@ -173,7 +193,7 @@ class Membership:
     def on_mark(self, m: Mark | Need) -> None:
         if m.sender not in self.heard:
             return  # (its own)
-        self.started = True
+        self.start()
         self.on_heard()
         self.heard[m.sender].marks.append((m.watermark, m.seq))
         self.alive.heard_from(m.sender)
@@ -204,6 +224,22 @@ class Membership:
 
     def check_suspects(self, wall: float) -> None:
         self.alive.check(wall, self.declare)
+        if wall - self.looked >= 1.0:
+            self.looked = wall
+            self.readers_back()
+
+    def readers_back(self) -> None:
+        """A robot that joins (or one back from a partition longer than DDS keeps a peer) is a
+        new reader, and what was published before never reaches it; the live robots say their
+        own again (``RealtimeAgentNode.readers_back``), and the monitor relays the originals of
+        the robots out or dead, which nobody else would."""
+        readers = sum(p.get_subscription_count() for p in self.kind_pubs)
+        back, self.readers = readers > self.readers, readers
+        if not back or not self.started:
+            return
+        for a in sorted(set(self.monitor.out) | self.monitor.dead):
+            for pub, data in self.originals[a]:
+                self.guard.relay(pub, data)
 
     def declare(self, agent: int) -> None:
         """The robot is silent too long: declared out with a notice stamped one above the last
@@ -245,8 +281,13 @@ class Membership:
         self.guard.publish(self.pub_lost, notice, run=self.run)
         for pub, data in self.originals[d.agent]:
             self.guard.relay(pub, data)  # as it was sealed by the robot itself
+        why = (
+            "joins later"
+            if d.agent in self.absent and d.life == 0
+            else f"no liveliness for 2 x {self.failure_timeout:g} s"
+        )
         self.node.get_logger().warning(
-            f"agent {d.agent} out (no liveliness for 2 x {self.failure_timeout:g} s) at sim time "
+            f"agent {d.agent} out ({why}) at sim time "
             f"{f.t:.1f}: notice stamped {d.stamp} (life {d.life}), its sensing counted up to {d.watermark}"
         )
         self.on_out(d.agent, f.t)
@@ -263,7 +304,7 @@ class MembershipNode(Node):
         scenario = node_scenario(p)
         self.ids = tuple(a.id for a in scenario.agents)
         self.done = False
-        self.role = Membership(self, self.ids, p, self.stop, lambda: -1.0)
+        self.role = Membership(self, self.ids, p, self.stop, lambda: -1.0, absent=rtp.joining(p["joins"]))
         g, th, q = self.role.guard, self.role.throttle, tp.LOCKSTEP_QOS
 
         def other_run(m) -> bool:

@@ -191,6 +191,7 @@ class RealtimeWorldNode(Node):
             raise ParameterError(f"stalls: {exc}") from None
         self.scenario, self.p = scenario, p
         self.ids = tuple(a.id for a in scenario.agents)
+        self.joining = rtp.joining(p["joins"])  # robots not in the team at the start (--join)
         self.declared = self.rejoins = 0
         self.membership_log: list[tuple[str, int, float]] = []  # (out/back, agent, sim time)
         self.fingerprint = tp.scenario_fingerprint(scenario)
@@ -248,7 +249,7 @@ class RealtimeWorldNode(Node):
         )
         self.result = Result(self, p)
         self.pub_end = self.create_publisher(wire.ros_type(RunEnd), tp.RUN_END, tp.LATCHED_ALL_QOS)
-        self.ready = Readiness(self, self.ids, self.fingerprint, g, th)
+        self.ready = Readiness(self, self.ids, self.fingerprint, g, th, later=self.joining)
         self.sub_report = tp.subscribe(
             self, AgentReport, tp.REPORTS, self.on_report, tp.LATCHED_ALL_QOS, g, th
         )
@@ -258,8 +259,9 @@ class RealtimeWorldNode(Node):
         self.lock = threading.RLock()  # the world's state: this thread and the bases' share it
         self.bases = BasesNode(self)
         for i in self.ids:
+            # latched: a robot that joins mid-run gets what its base said before it was up
             self.pub_base[i] = self.create_publisher(
-                wire.ros_type(BaseEvent), rtp.base_topic(i), q, event_callbacks=quiet()
+                wire.ros_type(BaseEvent), rtp.base_topic(i), tp.LATCHED_ALL_QOS, event_callbacks=quiet()
             )
             self.pub_pose[i] = self.create_publisher(PoseStamped, rtp.pose_topic(i), tp.LATEST_QOS)
         # Who is in the team (world_node.membership): the role in this process, or a
@@ -268,7 +270,7 @@ class RealtimeWorldNode(Node):
         self.membership: Membership | None = None
         if p["membership"] == "world":
             self.membership = Membership(
-                self, self.ids, p, self.stop_base, self.sim_now, self.on_out, self.heard_talk
+                self, self.ids, p, self.stop_base, self.sim_now, self.on_out, self.heard_talk, self.joining
             )
         else:
             self.pub_stopped = self.create_publisher(wire.ros_type(BaseStopped), rtp.STOPPED_BASES, q)
@@ -295,8 +297,10 @@ class RealtimeWorldNode(Node):
             out += self.membership.lacking()
         elif self.sub_stop.get_publisher_count() < 1 or self.pub_stopped.get_subscription_count() < 1:
             out.append("the membership node")
-        bases = [i for i in self.ids if self.pub_base[i].get_subscription_count() < 1]
-        if bases or self.pub_base_clock.get_subscription_count() < n:
+        bases = [
+            i for i in self.ids if i not in self.joining and self.pub_base[i].get_subscription_count() < 1
+        ]
+        if bases or self.pub_base_clock.get_subscription_count() < n - len(self.joining):
             out.append(f"base readers of {bases[:8]}")
         return out
 

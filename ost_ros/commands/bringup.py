@@ -66,6 +66,7 @@ class Process:
     args: list[str] = field(default_factory=list)  # arguments of a process that is not a node
     host: int = 0  # the simulated host it runs on (--hosts)
     remaps: list[tuple[str, str]] = field(default_factory=list)  # ROS remappings (from, to)
+    at: int = -1  # the run's sim time it starts at (--join; -1: with the run)
 
     def argv(self, run: Run) -> list[str]:
         exe = self.executable if os.path.isabs(self.executable) else str(run.bin_dir / self.executable)
@@ -139,7 +140,9 @@ class Run:
         )
         self.file(PROCESSES).write_text(
             "".join(
-                f"{p.name}\t{self.host_of(p) or '-'}\t{shlex.join(p.argv(self))}\n" for p in self.processes
+                f"{p.name}\t{self.host_of(p) or '-'}\t{shlex.join(p.argv(self))}\n"
+                for p in self.processes
+                if p.at < 0  # (one that joins later: the supervisor starts it, --join)
             )
         )
 
@@ -272,6 +275,7 @@ def _prepare(run: Run, say: Say, owner: int, launch: bool) -> None:
 
     scenario = load_scenario(scenario_path)
     run.ids = [a.id for a in (with_team(scenario, team) if team else scenario).agents]
+    cfg.check_joins(run.ids)
     hosts = _split_hosts(cfg, run.ids)  # (before the hosts are made: a bad split costs nothing)
     keys = cfg["keys"]
     if not cfg["insecure"] and not keys:
@@ -321,7 +325,8 @@ def _prepare(run: Run, say: Say, owner: int, launch: bool) -> None:
             own["use_sim_time"] = True
             remaps = [("/clock", f"/{cfg['namespace'].strip('/')}/clock")]
         host = hosts.get(i, 0) if hosts else slot  # (split: a robot in no group with the world)
-        run.processes.append(Process(f"agent_{i}", "agent_node", AGENT, own, host=host, remaps=remaps))
+        at = cfg.joins().get(i, -1)
+        run.processes.append(Process(f"agent_{i}", "agent_node", AGENT, own, host=host, remaps=remaps, at=at))
     if cfg["background"]:
         (d / "background").touch()
 

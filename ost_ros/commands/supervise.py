@@ -56,8 +56,9 @@ def start(run: Run, p: Process, extra: list[str] | None = None) -> int:
 
 
 def start_all(run: Run) -> dict[str, int]:
-    """Every process of the run, in its order: name -> PID."""
-    return {p.name: start(run, p) for p in run.processes}
+    """Every process of the run that starts with it, in its order: name -> PID (one that joins
+    later: :class:`Joins`)."""
+    return {p.name: start(run, p) for p in run.processes if p.at < 0}
 
 
 def _reap(pid: int) -> int | None:
@@ -140,6 +141,42 @@ class Partitions:
         path.write_text(json.dumps(data, indent=1) + "\n")
 
 
+class Joins:
+    """``--join AGENT:T``: the robot's process starts once the run's sim time reaches T (the
+    world and the monitor have counted it out from the start; it asks to come in as a robot
+    declared out does, and its peers say everything again to its new readers)."""
+
+    def __init__(self, run: Run, pids: dict[str, int], say):
+        self.run, self.pids, self.say = run, pids, say
+        self.late = sorted((p for p in run.processes if p.at >= 0), key=lambda p: p.at)
+        self.started: dict[int, float] = {}  # agent -> the sim time its process started at
+
+    def tick(self) -> None:
+        if not self.late:
+            return
+        try:
+            sim = float(_text(self.run.file(PROGRESS)).split()[0])
+        except (IndexError, ValueError):
+            return  # not started
+        while self.late and sim >= self.late[0].at:
+            p = self.late.pop(0)
+            self.pids[p.name] = start(self.run, p)
+            self.started[int(p.name.split("_")[1])] = sim
+            self.say(f"{p.name} joins: its process started at sim time {sim:g}")
+
+    def record(self) -> None:
+        """The joins into the run's result (``membership.joins``: agent, asked, started)."""
+        joins = self.run.config.joins()
+        if not joins:
+            return
+        path = self.run.file(RESULT)
+        data = json.loads(path.read_text())
+        data.setdefault("membership", {})["joins"] = [
+            {"agent": a, "at": t, "started": self.started.get(a)} for a, t in sorted(joins.items())
+        ]
+        path.write_text(json.dumps(data, indent=1) + "\n")
+
+
 class Supervisor:
     """One run's processes until its result (see the module docstring)."""
 
@@ -149,6 +186,7 @@ class Supervisor:
         self.stay = bool(self.cfg["background"])
         self.respawns = self.cfg["respawn_world"]
         self.partitions = Partitions(run, self.say)
+        self.joins = Joins(run, self.pids, self.say)
         self.started = False
         self.shown = ""
         self.t0 = time.monotonic()
@@ -208,8 +246,10 @@ class Supervisor:
             self.progress()
             if result.exists() and (self.stay or "world" not in self.alive()):
                 self.partitions.record()
+                self.joins.record()
                 return None
             self.partitions.tick()
+            self.joins.tick()
             for name, pid in list(self.pids.items()):
                 code = _reap(pid)
                 if code is None:

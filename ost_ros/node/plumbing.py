@@ -51,8 +51,10 @@ class Readiness:
         guard: NodeAuth,
         throttle: tp.Throttle,
         then: Callable[[], None] = lambda: None,
+        later: Collection[int] = (),
     ):
         self.ids, self.fingerprint, self.throttle, self.then = ids, fingerprint, throttle, then
+        self.later = frozenset(later)  # robots that join mid-run: not awaited at the start
         self.of: dict[int, Ready] = {}  # agent -> its Ready
         self.sub = tp.subscribe(node, Ready, tp.READY, self.on_ready, tp.LATCHED_ALL_QOS, guard, throttle)
 
@@ -71,11 +73,11 @@ class Readiness:
 
     @property
     def complete(self) -> bool:
-        return len(self.of) == len(self.ids)
+        return not self.missing()
 
     def missing(self) -> list[int]:
-        """The robots not ready yet, in team order."""
-        return [i for i in self.ids if i not in self.of]
+        """The robots not ready yet, in team order (those that join later aside)."""
+        return [i for i in self.ids if i not in self.of and i not in self.later]
 
 
 class Liveliness:

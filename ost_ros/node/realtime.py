@@ -5,6 +5,7 @@ as the lockstep's (:mod:`ost_ros.node.transport`)."""
 from __future__ import annotations
 
 from ost_ros import protocols
+from ost_ros.node.params import ParameterError
 from ost_ros.realtime.messages import Back, Lost, RtStatus, ScheduleUpdate, Status
 
 MARKS = "marks"  # agents → agents (and the world): watermarks
@@ -42,6 +43,21 @@ def message_kinds(protocol: str, organisation: str = "distributed") -> tuple[typ
     if organisation != "coordinator":
         kinds = [k for k in kinds if k is not ScheduleUpdate]
     return (*kinds, RtStatus, Back)
+
+
+def joining(text: str) -> frozenset[int]:
+    """The robots that join mid-run, from the ``joins`` parameter (``AGENT:T,...``): not in the
+    team at the start, so nobody waits for them before it (they come in as a robot declared out
+    comes back). A malformed list is a :class:`ParameterError`."""
+    out = set()
+    for item in (x.strip() for x in text.split(",")):
+        if not item:
+            continue
+        a, sep, t = item.partition(":")
+        if not (sep and a.isdigit() and t.isdigit()):
+            raise ParameterError(f"joins: expected AGENT:T[,AGENT:T...], got {item!r}")
+        out.add(int(a))
+    return frozenset(out)
 
 
 def follow_action(agent: int) -> str:

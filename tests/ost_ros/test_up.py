@@ -94,6 +94,17 @@ def test_a_team_replaces_the_scenarios(tmp_path):
          "--split: expected two groups or more"),
         (["--agents", "4", "--objects", "4", "--realtime", "--split", "0,1/1,2:10:5"],
          "--split: a robot in two groups"),
+        (["--agents", "4", "--objects", "4", "--join", "2:50"], "--join: needs --realtime"),
+        (["--agents", "4", "--objects", "4", "--realtime", "--join", "2"], "--join: expected AGENT:STEP"),
+        (["--agents", "4", "--objects", "4", "--nmax", "2", "--realtime", "--join", "7:50"],
+         "--join: agent 7 is not in the team [0, 1, 2, 3]"),
+        (["--agents", "4", "--objects", "4", "--nmax", "2", "--realtime", "--join", "2:0"],
+         "--join: agent 2 at sim time 0"),
+        (["--agents", "4", "--objects", "4", "--nmax", "2", "--realtime", "--join", "2:50", "--kill-agent",
+          "2:80"],
+         "--join: agent 2 both joins and is killed"),
+        (["--agents", "2", "--objects", "4", "--nmax", "2", "--realtime", "--join", "0:50", "--join", "1:60"],
+         "--join: every robot would join later"),
     ],
 )  # fmt: skip
 def test_errors_are_one_line_exit_2_and_leave_nothing(tmp_path, capsys, args, text):
@@ -103,6 +114,22 @@ def test_errors_are_one_line_exit_2_and_leave_nothing(tmp_path, capsys, args, te
     err = capsys.readouterr()
     assert text in err.err and len(err.err.strip().splitlines()) == 1 and not err.out
     assert not list((tmp_path / "locks").glob("*"))  # no domain kept
+
+
+def test_a_robot_that_joins_is_started_by_the_supervisor_not_the_script(tmp_path):
+    """``--join 2:50``: robot 2's process is not in ``processes`` (what ost_up.sh starts at once)
+    but in run.json with the sim time it starts at; world and agents are told who joins."""
+    d = tmp_path / "run"
+    assert ost(["up", "--prepare", "--agents", "4", "--objects", "4", "--nmax", "2", "--realtime",
+                "--join", "2:50", "--run-dir", str(d)]) == 0  # fmt: skip
+    names = [line.split("\t")[0] for line in (d / "processes").read_text().splitlines()]
+    assert "agent_2" not in names and "agent_3" in names
+    run = bringup.Run.load(d)
+    assert [(p.name, p.at) for p in run.processes if p.at >= 0] == [("agent_2", 50)]
+    assert len(run.agents) == 4
+    for role in ("world", "agent"):
+        assert "joins: '2:50'" in (d / f"{role}.params.yaml").read_text()
+    assert ost(["up", "--down", str(d)]) == 0
 
 
 def exit_code(argv: list[str]) -> int:

@@ -275,6 +275,41 @@ def test_a_robot_stopped_for_5_s_is_declared_out_comes_back_and_works_again(tmp_
     assert any(2 in o["agents"] and o["start"] > back for o in result["objects"])  # it works again
 
 
+@pytest.mark.parametrize(("join", "kill"), [(100, None), (150, 60)])
+def test_a_robot_that_joins_mid_run_is_given_work(tmp_path, join, kill):
+    """``--join 2:T``: robot 2's process is started by the supervisor once the run's sim time
+    reaches T; the monitor counted it out from the start, it asks to come in as a robot declared
+    out does, its peers say everything again to its new readers — and the monitor says a dead
+    robot's (robot 4, killed before the join: the one who joins awaits no peer, dead or alive) —
+    and the team gives it work. Every object delivered, 0 disagreements, nobody else out."""
+    path = tmp_path / "scenario.yaml"
+    path.write_text(dump_scenario(generate_scenario(6, 10, 919, Grid(120, 60), 3)))
+    run_dir = tmp_path / "run"
+    faults = ["--kill-agent", f"4:{kill}"] if kill else []
+    run = ost_up(
+        "--scenario", str(path), "--realtime", "--rtf", "20", "--join", f"2:{join}", *faults, "--json",
+        "--run-dir", str(run_dir), "--timeout", "300", timeout=320,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert "agent_2 joins: its process started at sim time" in run.stderr
+    result = result_json(run.stdout)
+    kept_its_promise(result, 10, dead=(4,) if kill else ())
+    m = result["membership"]
+    [joined] = m["joins"]
+    assert joined["agent"] == 2 and joined["at"] == join and joined["started"] >= join
+    assert m["declared"] == 1 + bool(kill) and m["rejoins"] == 1
+    assert m["out_at_end"] == ([4] if kill else [])
+    assert [f["agent"] for f in result["failures"]] == ([4] if kill else [])
+    back = max(t for kind, a, t in m["events"] if kind == "back" and a == 2)
+    assert back >= joined["started"]
+    assert any(2 in o["agents"] and o["start"] > back for o in result["objects"])  # it works
+    said = (run_dir / "membership.log").read_text()
+    assert "agent 2 out (joins later)" in said
+    assert "replayed" not in said  # the copies said again to the new robot: skipped, not warned
+    for name in ("membership", "world", "agent_0", "agent_2"):
+        assert "Traceback" not in (run_dir / f"{name}.log").read_text()
+
+
 def test_a_team_whose_world_has_no_membership_role_runs_with_a_membership_node(tmp_path):
     """``membership:=node`` (the default): the world serves bases, sensing and the clock only; a
     ``membership_node`` process of its own (the world's settings, its own key) watches
