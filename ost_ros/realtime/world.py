@@ -269,6 +269,9 @@ class _Bot:
     finished_total: float = 0.0
     legs: list[_Leg] = field(default_factory=list)
     delivered: list[int] = field(default_factory=list)
+    # (time, object): its carry was broken by a partner's failure; it goes on carrying until its
+    # move under way ends at ``time``, and says so only then (the ABORTED result)
+    broken: tuple[float, int] | None = None
 
 
 @dataclass
@@ -377,6 +380,11 @@ class RealtimeWorld:
         if b.kind == "follow" and b.route is not None:
             index = m - b.offset
         carrying = b.holding if b.kind == "carry" else -1
+        if b.broken is not None and at < b.broken[0] - EPS:
+            # a partner failed mid-carry: the base still carries until the move under way ends
+            # and its ABORTED result says otherwise (what the robot's own picture shows; telling
+            # it sooner would be the simulator's knowledge, not its base's)
+            carrying = b.broken[1]
         return Feedback(agent, time, cell, b.goal, index, carrying, self._sensed(cell))
 
     def position(self, agent: int, t: float) -> Cell:
@@ -454,6 +462,7 @@ class RealtimeWorld:
                 )
             return [GoalResult(agent, gid, REFUSED, at, cell, code, reason)]
         out: list[Any] = self._leave(b, at, time, cell, m)
+        b.broken = None
         self._finish_label(b, goal, time)
         b.goal, b.version = gid, b.version + 1
         b.label = goal.state
@@ -664,6 +673,7 @@ class RealtimeWorld:
             if j == culprit or not x.alive:
                 continue
             x.cell, x.time, x.route, x.kind, x.holding, x.group = r.cells[m], time, None, "done", -1, ()
+            x.broken = (time, run.object)
             reason = f"agent {culprit} {'failed' if code == 'MEMBER_FAILED' else 'let go'}"
             self._push(time, 3, ("abort", j, x.goal, x.version, code, reason, r.cells[m]))
         self._drop(run.object, time)

@@ -158,6 +158,31 @@ def test_a_robot_declared_late_leaves_no_unreported_find_behind(when):
     assert r.completed and report.mirror_errors == []
 
 
+@pytest.mark.parametrize(
+    ("n", "m", "scenario_seed", "nmax", "ci", "planner", "dead", "latency", "seed", "jitter"),
+    [
+        (3, 6, 552498, 3, 1, "paper", {0: 140}, (7, 0), 230315, 1.0),
+        (6, 7, 721619, 4, 3, "improved", {0: 66}, (9, 6), 258349, 0.3),
+    ],
+)
+def test_a_partner_dying_mid_carry_is_told_by_the_base_when_its_move_ends(
+    n, m, scenario_seed, nmax, ci, planner, dead, latency, seed, jitter
+):
+    """A carry broken by a partner's failure goes on to the end of the move under way, and the
+    base says so then (ABORTED). The simulated base told the robot at once (its feedback said
+    "not carrying" from the failure on), while the robot's own picture — what an agent node decides
+    from — still said carrying: the two disagreed at a decision in between (found by a search of
+    random coordinator runs; the run completed)."""
+    s = generate_scenario(n, m, scenario_seed, Grid(14, 5), nmax)
+    policy = CoordinationPolicy(ci=ci, organisation="coordinator")
+    r, report = run_realtime(
+        s, "ccp", policy, CcpSettings(planner=planner), latency=Latency(*latency), seed=seed,
+        speed_jitter=jitter, failures=dead, mirrors=True,
+    )  # fmt: skip
+    check_run(s, r, report, set(dead))
+    assert report.mirror_errors == []
+
+
 @settings(max_examples=40, deadline=None)
 @given(teams(agents=(2, 6), objects=(1, 7)), st.integers(0, 10**6))
 def test_more_latency_and_reordering_never_break_agreement(team, seed):
