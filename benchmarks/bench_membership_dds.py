@@ -85,13 +85,12 @@ def one(
             if m and float(m.group(1)) >= resumed:
                 back_wall = float(m.group(1)) - resumed
                 break
-    if split and "--join" in split:  # from the joining process's start (its pid file) to back
-        started = (d / "run" / "agent_2.pid").stat().st_mtime
-        for line in (d / "run" / "world.log").read_text().splitlines():
-            m = re.search(r"\[(\d+\.\d+)\] \[ost\.world\]: agent 2 back", line)
-            if m:
-                back_wall = float(m.group(1)) - started
-                break
+    if split and "--join" in split:  # from the joining process's start to back: sim time is wall x rtf
+        m = result.get("membership", {})
+        started = next((j["started"] for j in m.get("joins", []) if j["agent"] == 2), None)
+        back = [t for kind, who, t in m.get("events", []) if kind == "back" and who == 2]
+        if started is not None and back:
+            back_wall = (back[0] - started) / rtf
     result["back_after_s"] = back_wall
     return result
 

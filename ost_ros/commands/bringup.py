@@ -380,19 +380,24 @@ def _environment(run: Run, owner: int) -> None:
             env["ROS_STATIC_PEERS"] = ";".join(ips)
         elif cfg["discovery"] == "server":
             env["ROS_DISCOVERY_SERVER"] = f"{ips[0]}:{DISCOVERY_PORT}"
-            run.processes.append(_discovery_server(run, ips[0]))
+            run.processes.append(_discovery_server(run, ips[0], DISCOVERY_PORT))
+    elif cfg["discovery"] == "server":  # on this host: a port of the run's own domain
+        port = DISCOVERY_PORT + domain
+        env["ROS_DISCOVERY_SERVER"] = f"127.0.0.1:{port}"
+        run.processes.append(_discovery_server(run, "127.0.0.1", port))
     run.env = env
 
 
-def _discovery_server(run: Run, ip: str) -> Process:
-    """A Fast DDS discovery server on the first host (--discovery server). The wheel's binary
-    finds Fast DDS in the venv's lib/, its bundled libraries beside the wheel."""
+def _discovery_server(run: Run, ip: str, port: int) -> Process:
+    """A Fast DDS discovery server (--discovery server) on the first simulated host, or on this
+    one. The wheel's binary finds Fast DDS in the venv's lib/, its bundled libraries beside the
+    wheel."""
     venv = run.bin_dir.parent
     libs = [str(venv / "lib"), *map(str, venv.glob("lib/python3*/site-packages/ros_fastrtps.libs"))]
     old = os.environ.get("LD_LIBRARY_PATH")
     path = f"LD_LIBRARY_PATH={':'.join(libs + ([old] if old else []))}"
     exe = str(run.bin_dir / "fast-discovery-server")
-    args = [path, exe, "-i", "0", "-l", ip, "-p", str(DISCOVERY_PORT)]
+    args = [path, exe, "-i", "0", "-l", ip, "-p", str(port)]
     return Process("discovery_server", shutil.which("env") or "/usr/bin/env", args=args)
 
 
