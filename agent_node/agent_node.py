@@ -32,7 +32,7 @@ from ost_ros.lockstep.messages import Acted, AgentReport, Ready, Resend, RunEnd,
 from ost_ros.model import Scenario
 from ost_ros.node import transport as tp
 from ost_ros.node.params import ParameterError, declare_agent, param_from_args, realtime_from_args
-from ost_ros.node.plumbing import Alive
+from ost_ros.node.plumbing import Alive, renew_endpoints
 from ost_ros.node.run import run_node
 from ost_ros.node.signing import node_auth
 from ost_ros.team import TeamInfo
@@ -177,22 +177,8 @@ class AgentRunner:
     def rediscover(self, endpoints: list[Publisher | Subscription]) -> None:
         """Create ``endpoints`` anew (the rediscover_s parameter); before the run, so nothing is
         in flight on them."""
-        for old in endpoints:
-            new = tp.renew(self.node, old)
-            for name in (
-                "pub_acted",
-                "pub_ready",
-                "pub_report",
-                "sub_tick",
-                "sub_end",
-                "pub_resend",
-            ):
-                if getattr(self, name) is old:
-                    setattr(self, name, new)
-            if self.alive.pub is old:
-                self.alive.pub = new
-            self.kind_pubs = {kind: new if p is old else p for kind, p in self.kind_pubs.items()}
-            self.kind_subs = [new if s is old else s for s in self.kind_subs]
+        singles = ("pub_acted", "pub_ready", "pub_report", "sub_tick", "sub_end", "pub_resend")
+        renew_endpoints(self.node, self, endpoints, singles)
 
     def on_timer(self) -> None:
         self.leave_if_reported()

@@ -42,7 +42,7 @@ from ost_ros.lockstep.messages import AgentReport, Ready, RunEnd, Sample, Schedu
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
 from ost_ros.node.params import declare_agent
-from ost_ros.node.plumbing import Alive
+from ost_ros.node.plumbing import Alive, renew_endpoints
 from ost_ros.node.signing import node_auth
 from ost_ros.realtime.agent import AskFeedback, Output, Publish, RealtimeAgent, SendGoal, WakeAt
 from ost_ros.realtime.base import mirror_of, unpack
@@ -170,9 +170,9 @@ class RealtimeAgentNode(Node):
         self.sub_clock = tp.subscribe(
             self, BaseClock, rtp.BASE_CLOCK, self.on_base_clock, tp.LATEST_QOS, g, th, skip=other_run
         )
-        # (latched: a robot that joins mid-run gets what its base said before it was up)
+        # (a robot that joins mid-run: the world says its base's events again once this is matched)
         self.sub_base = tp.subscribe(
-            self, BaseEvent, rtp.base_topic(me), self.on_base, tp.LATCHED_ALL_QOS, g, th, skip=other_run
+            self, BaseEvent, rtp.base_topic(me), self.on_base, q, g, th, skip=other_run
         )
         # Its goals for its base, one way: its base's events say what became of them.
         self.pub_goals = self.create_publisher(
@@ -238,15 +238,7 @@ class RealtimeAgentNode(Node):
     def rediscover(self, endpoints: list[Any]) -> None:
         """Create ``endpoints`` anew (the ``rediscover_s`` parameter: Fast DDS now and then never
         pairs one writer with one reader, docs/ros.md); before the run, so nothing is in flight."""
-        for old in endpoints:
-            new = tp.renew(self, old)
-            for name in self.SINGLE:
-                if getattr(self, name) is old:
-                    setattr(self, name, new)
-            if self.alive is not None and self.alive.pub is old:
-                self.alive.pub = new
-            self.kind_pubs = {kind: new if p is old else p for kind, p in self.kind_pubs.items()}
-            self.kind_subs = [new if s is old else s for s in self.kind_subs]
+        renew_endpoints(self, self, endpoints, self.SINGLE)
 
     def try_ready(self) -> None:
         if self.ready_sent:

@@ -477,7 +477,11 @@ class RunConfig:
         """The robots that join mid-run: agent -> the sim time its process starts at (from the
         option or the nodes' parameter)."""
         items = self["join"] or [x for x in self["joins"].split(",") if x.strip()]
-        return dict(agent_step(x) for x in items)
+        pairs = [agent_step(x) for x in items]
+        twice = sorted({a for a, _ in pairs if sum(b == a for b, _ in pairs) > 1})
+        if twice:
+            raise ConfigError("join", f"agent {twice[0]} joins twice")
+        return dict(pairs)
 
     def check_joins(self, team: list[int]) -> None:
         """--join against the team (once the scenario is known): one error each."""

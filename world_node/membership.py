@@ -26,11 +26,13 @@ On real bases this node and the agents are the team: nothing of the simulator de
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import sys
 import time
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -105,10 +107,13 @@ class Membership:
         on_out: Callable[[int, float], None] = lambda a, t: None,
         on_heard: Callable[[], None] = lambda: None,
         absent: frozenset[int] = frozenset(),
+        lock: AbstractContextManager | None = None,
     ):
         self.node, self.ids, self.stop, self.now, self.on_out = node, ids, stop, now, on_out
         # robots that join mid-run (--join): out from the start, declared once the run starts
         self.absent = absent
+        # the world's state, when the role is in its process (its bases' thread runs beside)
+        self.lock = lock if lock is not None else contextlib.nullcontext()
         self.on_heard = on_heard  # (the world ticks faster while robots talk)
         self.guard: NodeAuth = node_auth(p["keys"], p["insecure"], auth.MEMBERSHIP)
         self.run = self.guard.run or ""
@@ -172,8 +177,9 @@ class Membership:
         if self.started:
             return
         self.started = True
-        for a in sorted(self.absent):
-            self.declare(a)
+        with self.lock:  # (a callback: in the world's process, its bases' thread runs beside)
+            for a in sorted(self.absent):
+                self.declare(a)
 
     def on_sample(self, pub: Any, s: Sample, data: bytes) -> None:
         sender = s.message.sender

@@ -13,7 +13,8 @@ time, with no barrier. It serves :class:`~ost_ros.realtime.world.RealtimeWorld` 
   robot keeps its own picture of its base from these (:mod:`ost_ros.realtime.base`): it never
   asks where it is;
 - ``<ns>/base_clock`` (``ost_msgs/BaseClock``): sim time, ``rtf`` steps per wall second,
-  ``clock_hz`` times a second (and right after events), with how many base events each robot's
+  ``clock_hz`` times a second but no more than 4 times a sim step (and right after events), with
+  how many base events each robot's
   base has sent so far — a robot holding all of them has every base event up to that time;
   ``<ns>/clock`` (``rosgraph_msgs/Clock``) for tools and ``use_sim_time``, 10 times a second;
 - ``<ns>/agent_<i>/pose`` (``geometry_msgs/PoseStamped``, frame ``map``, 1 cell = 1 m) when the
@@ -33,7 +34,8 @@ Everything a robot reads from the world (base events, the bases' clock, notices,
 sealed like a robot's messages (docs/ros.md); the action and the display topics are not.
 
 The world node runs on rclpy's EventsExecutor: a goal, a sample or its tick wakes it (the tick
-at ``clock_hz``, at most 500 / team size, and 2 Hz while nothing happens). The actions are on the
+at ``clock_hz``, at most 500 / team size; the bases' clock on a tick at most 4 times a sim step,
+and 2 Hz while nothing happens). The actions are on the
 node ``<ns>/bases``, spun by rclpy's SingleThreadedExecutor in a thread of its own with a timer
 for the world's next event (:class:`BasesNode`); the two share the world under one lock.
 """
@@ -88,6 +90,11 @@ from world_node.membership import Membership
 POSE_HZ = 10.0  # poses of robots that moved, and the rosgraph clock (wall)
 IDLE_HZ = 2.0  # the bases' clock and the rosgraph clock while nothing happens (wall)
 CLOCK_DELIVERIES = 500.0  # the bases' clock: robots x ticks per second, at most
+# ... and no more than this many a sim step while active (events bring one at once): a robot
+# decides at whole steps once the batches before are committed, and a commit needs only a clock
+# past the batch — four a step are ahead of every decision. A slow run (rtf 1, or a team that
+# stands still at rtf 0.01) is then not sent 10-50 clocks a step for nothing.
+CLOCKS_PER_STEP = 4.0
 START_S = 0.05  # how often it looks whether the team is ready, before the run
 DEBUG = bool(os.environ.get("OST_RT_DEBUG"))
 RESULT_KEPT_S = 10  # an ended goal's result, kept for its client (s)
@@ -192,6 +199,10 @@ class RealtimeWorldNode(Node):
         self.scenario, self.p = scenario, p
         self.ids = tuple(a.id for a in scenario.agents)
         self.joining = rtp.joining(p["joins"])  # robots not in the team at the start (--join)
+        # what each robot that joins later was told by its base (said again when it is up)
+        self.said_to: dict[int, list[Any]] = {i: [] for i in self.joining}
+        self.base_readers: dict[int, int] = {}
+        self.looked = 0.0
         self.declared = self.rejoins = 0
         self.membership_log: list[tuple[str, int, float]] = []  # (out/back, agent, sim time)
         self.fingerprint = tp.scenario_fingerprint(scenario)
@@ -222,6 +233,8 @@ class RealtimeWorldNode(Node):
         self.active = False  # something happened since the last tick (events, goals, messages)
         self.always_active = p["membership"] != "world"  # (it hears no robot talk: full rate)
         self.last_base_clock = 0.0
+        self.last_base_clock_t = 0.0  # the sim time it said
+        self.clock_owed = False  # something happened since the last base clock
         self.posed: dict[int, tuple[int, int]] = {}  # the cell each robot's last pose showed
         self.goals: dict[tuple[int, int], tuple[Any, Future]] = {}  # (agent, goal id) -> (handle, result)
         self.carrying: dict[int, tuple[int, Any]] = {}  # agent -> (object, goal handle) of its carry
@@ -259,9 +272,8 @@ class RealtimeWorldNode(Node):
         self.lock = threading.RLock()  # the world's state: this thread and the bases' share it
         self.bases = BasesNode(self)
         for i in self.ids:
-            # latched: a robot that joins mid-run gets what its base said before it was up
             self.pub_base[i] = self.create_publisher(
-                wire.ros_type(BaseEvent), rtp.base_topic(i), tp.LATCHED_ALL_QOS, event_callbacks=quiet()
+                wire.ros_type(BaseEvent), rtp.base_topic(i), q, event_callbacks=quiet()
             )
             self.pub_pose[i] = self.create_publisher(PoseStamped, rtp.pose_topic(i), tp.LATEST_QOS)
         # Who is in the team (world_node.membership): the role in this process, or a
@@ -270,7 +282,15 @@ class RealtimeWorldNode(Node):
         self.membership: Membership | None = None
         if p["membership"] == "world":
             self.membership = Membership(
-                self, self.ids, p, self.stop_base, self.sim_now, self.on_out, self.heard_talk, self.joining
+                self,
+                self.ids,
+                p,
+                self.stop_base,
+                self.sim_now,
+                self.on_out,
+                self.heard_talk,
+                self.joining,
+                self.lock,
             )
         else:
             self.pub_stopped = self.create_publisher(wire.ros_type(BaseStopped), rtp.STOPPED_BASES, q)
@@ -409,6 +429,20 @@ class RealtimeWorldNode(Node):
         self.active = True
         self.guard.publish(self.pub_base[agent], msg, run=self.run, receivers=(agent,))
         self.sent_events = True
+        if agent in self.said_to:
+            self.said_to[agent].append(msg)
+
+    def joiners_back(self) -> None:
+        """(Under the lock) A robot that joins mid-run has a new reader of its base topic, and
+        what its base said before that never reached it (its sensing where it stands, its
+        base stopped at the start): said again, sealed anew, once a reader is matched (the
+        robot takes each event once, by its number)."""
+        for i, said in self.said_to.items():
+            readers = self.pub_base[i].get_subscription_count()
+            if readers > self.base_readers.get(i, 0):
+                for msg in said:
+                    self.guard.publish(self.pub_base[i], msg, run=self.run, receivers=(i,))
+            self.base_readers[i] = readers
 
     def dispatch(self, ev: Any) -> None:
         if DEBUG:
@@ -445,11 +479,17 @@ class RealtimeWorldNode(Node):
                 self.advance(now)
                 if self.membership is not None:
                     self.membership.check_suspects(wall)
+                if self.said_to and wall - self.looked >= 1.0:
+                    self.looked = wall
+                    self.joiners_back()
                 if self.world.done:
                     self.end_run(now)
             # A team that says nothing and whose bases do nothing needs the clock only now and
-            # then (its robots extrapolate it); any activity brings it back to every tick.
-            if self.active or wall - self.last_base_clock >= 1.0 / IDLE_HZ:
+            # then (its robots extrapolate it); any activity brings it back to every tick that
+            # moves sim time on by a quarter step or more.
+            self.clock_owed = self.clock_owed or self.active  # (kept until a clock goes out)
+            moved = self.advanced - self.last_base_clock_t >= 1.0 / CLOCKS_PER_STEP
+            if (self.clock_owed and moved) or wall - self.last_base_clock >= 1.0 / IDLE_HZ:
                 self.publish_base_clock(self.advanced)
             soon = self.next_event_in() is not None
         if soon:  # the event timer, for an event due before the next tick (waking the bases'
@@ -493,8 +533,8 @@ class RealtimeWorldNode(Node):
         return None if delay >= 1.0 / self.tick_hz else max(delay, 0.0)
 
     def publish_base_clock(self, now: float) -> None:
-        self.sent_events = False
-        self.last_base_clock = time.monotonic()
+        self.sent_events = self.clock_owed = False
+        self.last_base_clock, self.last_base_clock_t = time.monotonic(), now
         clock = BaseClock(now, tuple(self.events[i] for i in self.ids))
         self.guard.publish(self.pub_base_clock, clock, run=self.run)
 

@@ -36,6 +36,7 @@ DOMAIN_LOCKS = Path(tempfile.gettempdir()) / "ost_domain_locks"
 RUN_FILE, ENV_FILE, PROCESSES = "run.json", "env.sh", "processes"
 READY, PROGRESS, RESULT = "ready", "progress", "result.json"
 DISCOVERY_PORT = 11811
+LOCAL_DISCOVERY_PORT = 7000  # + the domain id: --discovery server on one host
 Say = Callable[[str], None]
 
 
@@ -254,6 +255,8 @@ def prepare(
             raise ConfigError("run_dir", f"cannot create {d} ({exc.strerror})") from None
         if (d / "world.pid").exists():
             raise ConfigError("run_dir", f"{d} holds a run (ost_down.sh it first)")
+        for name in (READY, PROGRESS, RESULT, "started"):  # a past run's: not this one's
+            (d / name).unlink(missing_ok=True)
         made = False
     else:
         d, made = Path(tempfile.mkdtemp(prefix="ost_run.", dir="/tmp")), True
@@ -381,8 +384,8 @@ def _environment(run: Run, owner: int) -> None:
         elif cfg["discovery"] == "server":
             env["ROS_DISCOVERY_SERVER"] = f"{ips[0]}:{DISCOVERY_PORT}"
             run.processes.append(_discovery_server(run, ips[0], DISCOVERY_PORT))
-    elif cfg["discovery"] == "server":  # on this host: a port of the run's own domain
-        port = DISCOVERY_PORT + domain
+    elif cfg["discovery"] == "server":  # on this host: a port of the run's own domain, below
+        port = LOCAL_DISCOVERY_PORT + domain  # the ports of every DDS domain (7400 + 250 x id ...)
         env["ROS_DISCOVERY_SERVER"] = f"127.0.0.1:{port}"
         run.processes.append(_discovery_server(run, "127.0.0.1", port))
     run.env = env

@@ -72,6 +72,22 @@ def _reap(pid: int) -> int | None:
     return os.waitstatus_to_exitcode(status) if os.WIFEXITED(status) else 128 + os.WTERMSIG(status)
 
 
+def _sim_time(run: Run) -> float | None:
+    """The run's sim time (its progress file), or None before the start."""
+    try:
+        return float(_text(run.file(PROGRESS)).split()[0])
+    except (IndexError, ValueError):
+        return None
+
+
+def _amend_result(run: Run, key: str, value: object) -> None:
+    """``membership[key] = value`` in the run's result (the world's JSON)."""
+    path = run.file(RESULT)
+    data = json.loads(path.read_text())
+    data.setdefault("membership", {})[key] = value
+    path.write_text(json.dumps(data, indent=1) + "\n")
+
+
 @dataclass
 class Cut:
     """One ``--split`` over simulated hosts: what it cuts, when, and what happened (epoch s)."""
@@ -101,9 +117,8 @@ class Partitions:
     def tick(self) -> None:
         if not any(c.healed is None for c in self.cuts):
             return
-        try:
-            sim = float(_text(self.run.file(PROGRESS)).split()[0])
-        except (IndexError, ValueError):
+        sim = _sim_time(self.run)
+        if sim is None:
             return  # not started
         from ost_ros.commands import hosts
 
@@ -122,8 +137,7 @@ class Partitions:
         """The splits into the run's result (the world's JSON, with the digests' arrival times)."""
         if not self.cuts:
             return
-        path = self.run.file(RESULT)
-        data = json.loads(path.read_text())
+        data = json.loads(self.run.file(RESULT).read_text())
         arrived = {int(s): t for s, t in data.get("digests_at", {}).items()}
         out = []
         for c in self.cuts:
@@ -137,8 +151,7 @@ class Partitions:
                 late = [t for s, t in arrived.items() if s <= sim]
                 item["agree_after_s"] = round(max(max(late, default=wall) - wall, 0.0), 3)
             out.append(item)
-        data.setdefault("membership", {})["splits"] = out
-        path.write_text(json.dumps(data, indent=1) + "\n")
+        _amend_result(self.run, "splits", out)
 
 
 class Joins:
@@ -152,12 +165,9 @@ class Joins:
         self.started: dict[int, float] = {}  # agent -> the sim time its process started at
 
     def tick(self) -> None:
-        if not self.late:
-            return
-        try:
-            sim = float(_text(self.run.file(PROGRESS)).split()[0])
-        except (IndexError, ValueError):
-            return  # not started
+        sim = _sim_time(self.run) if self.late else None
+        if sim is None:
+            return  # nobody left to start, or not started
         while self.late and sim >= self.late[0].at:
             p = self.late.pop(0)
             self.pids[p.name] = start(self.run, p)
@@ -169,19 +179,20 @@ class Joins:
         joins = self.run.config.joins()
         if not joins:
             return
-        path = self.run.file(RESULT)
-        data = json.loads(path.read_text())
-        data.setdefault("membership", {})["joins"] = [
-            {"agent": a, "at": t, "started": self.started.get(a)} for a, t in sorted(joins.items())
-        ]
-        path.write_text(json.dumps(data, indent=1) + "\n")
+        _amend_result(
+            self.run,
+            "joins",
+            [{"agent": a, "at": t, "started": self.started.get(a)} for a, t in sorted(joins.items())],
+        )
 
 
 class Supervisor:
     """One run's processes until its result (see the module docstring)."""
 
     def __init__(self, run: Run, pids: dict[str, int], err: TextIO = sys.stderr, out: TextIO = sys.stdout):
-        self.run, self.pids, self.err, self.out = run, dict(pids), err, out
+        # (a PID <= 0 is no process: waitpid and kill would take it for the whole group)
+        self.run, self.err, self.out = run, err, out
+        self.pids = {name: pid for name, pid in pids.items() if pid > 0}
         self.cfg = run.config
         self.stay = bool(self.cfg["background"])
         self.respawns = self.cfg["respawn_world"]
@@ -205,7 +216,11 @@ class Supervisor:
             self.say(f"live view: open ws://127.0.0.1:{self.cfg['foxglove']} in the Foxglove app "
                      "(Open connection, Foxglove WebSocket)")  # fmt: skip
         monitor = " + membership node" if any(p.name == "membership" for p in run.processes) else ""
-        self.say(f"started world{monitor} + {len(run.agents)} agents{hosts} ({where}, run dir {run.dir})")
+        later = sum(p.at >= 0 for p in run.agents)
+        joining = f" ({later} to join later)" if later else ""
+        self.say(
+            f"started world{monitor} + {len(run.agents) - later} agents{joining}{hosts} ({where}, run dir {run.dir})"
+        )
 
     def say(self, text: str) -> None:
         self.end_progress()
@@ -236,7 +251,7 @@ class Supervisor:
     def _watch(self) -> int | None:
         """Poll until the result is in (None) or the run failed (its exit code)."""
         run, result = self.run, self.run.file(RESULT)
-        n = len(run.agents)
+        n = sum(p.at < 0 for p in run.agents)  # (those that join later are not awaited)
         timeout = self.cfg["timeout"]
         while True:
             if not self.started and run.file(READY).exists():

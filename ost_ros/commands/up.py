@@ -90,7 +90,8 @@ def cmd_up(args: argparse.Namespace) -> int:
 
     if args.supervise:
         run = bringup.Run.load(args.supervise)
-        pids = {p.name: supervise._pid(run.file(f"{p.name}.pid")) for p in run.processes}
+        # (a robot that joins later has no PID yet: the supervisor starts it, supervise.Joins)
+        pids = {p.name: supervise._pid(run.file(f"{p.name}.pid")) for p in run.processes if p.at < 0}
         return supervise.Supervisor(run, pids).supervise()
     if args.down:
         d = Path(args.down)

@@ -22,6 +22,7 @@ import time
 from collections.abc import Callable, Collection, Mapping
 from typing import Any
 
+import rclpy
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.publisher import Publisher
@@ -244,8 +245,11 @@ class Alive:
         while not self.stop.wait(period):
             try:
                 self.pub.assert_liveliness()  # (renewed by rediscover: the attribute is read anew)
-            except Exception:  # the node is going away: its liveliness with it
-                return
+            except Exception:
+                # a publisher destroyed under it: renewed (rediscover swaps it in a moment
+                # later) or the node going away, when its liveliness goes with it
+                if not rclpy.ok():
+                    return
 
     def say(self) -> None:
         self.readers = self.pub.get_subscription_count()
@@ -258,3 +262,19 @@ class Alive:
         if readers > self.readers:
             self.say()
         self.readers = readers  # also when one is gone: its successor counts as new
+
+
+def renew_endpoints(node: Node, holder: Any, olds: Collection[Any], singles: Collection[str]) -> None:
+    """Create ``olds`` anew (an agent node's discovery that stopped moving, ``rediscover_s``)
+    where ``holder`` keeps them: its attributes ``singles``, its ``alive.pub``, its ``kind_pubs``
+    (kind -> publisher) and ``kind_subs``. Before the run only, when nothing is in flight."""
+    for old in olds:
+        new = tp.renew(node, old)
+        for name in singles:
+            if getattr(holder, name) is old:
+                setattr(holder, name, new)
+        alive = getattr(holder, "alive", None)
+        if alive is not None and alive.pub is old:
+            alive.pub = new
+        holder.kind_pubs = {kind: new if p is old else p for kind, p in holder.kind_pubs.items()}
+        holder.kind_subs = [new if s is old else s for s in holder.kind_subs]

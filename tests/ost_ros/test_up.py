@@ -96,6 +96,8 @@ def test_a_team_replaces_the_scenarios(tmp_path):
          "--split: a robot in two groups"),
         (["--agents", "4", "--objects", "4", "--join", "2:50"], "--join: needs --realtime"),
         (["--agents", "4", "--objects", "4", "--discovery", "static"], "--discovery: needs --hosts K"),
+        (["--agents", "4", "--objects", "4", "--nmax", "2", "--realtime", "--join", "2:50", "--join", "2:60"],
+         "--join: agent 2 joins twice"),
         (["--agents", "4", "--objects", "4", "--realtime", "--join", "2"], "--join: expected AGENT:STEP"),
         (["--agents", "4", "--objects", "4", "--nmax", "2", "--realtime", "--join", "7:50"],
          "--join: agent 7 is not in the team [0, 1, 2, 3]"),
