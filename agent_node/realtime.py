@@ -36,7 +36,7 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 from std_msgs.msg import String
 
-from ost_msgs_py import wire
+from ost_msgs_py import auth, wire
 from ost_msgs_py.auth import WORLD
 from ost_ros.lockstep.messages import AgentReport, Ready, RunEnd, Sample, ScheduleEntry
 from ost_ros.node import realtime as rtp
@@ -46,6 +46,7 @@ from ost_ros.node.plumbing import Alive, renew_endpoints
 from ost_ros.node.signing import node_auth
 from ost_ros.realtime.agent import AskFeedback, Output, Publish, RealtimeAgent, SendGoal, WakeAt
 from ost_ros.realtime.base import mirror_of, unpack
+from ost_ros.realtime.membership import misfit
 from ost_ros.realtime.messages import (
     BaseClock,
     BaseEvent,
@@ -384,6 +385,18 @@ class RealtimeAgentNode(Node):
             # a peer that heard the first clock sooner has started and spoken: kept for the start
             # (dropped, its message or watermark was lost for good and batch 1 with it)
             self.early.append(payload)
+            return
+        why = misfit(payload, self.ids, self.rt.comm.incarnation)
+        if why is not None:  # (a copy of the newest life's is fine: said again after a cut)
+            self.guard.drop(f"{auth.STALE}: {why}")
+            topic = (
+                rtp.HELLOS
+                if isinstance(payload, Hello)
+                else rtp.LOST
+                if isinstance(payload, Lost)
+                else "back"
+            )
+            self.throttle.warn(topic, f"agent {getattr(payload, 'sender', '?')}", f"{auth.STALE}: {why}")
             return
         if not self.report_sent and not self.done:
             try:

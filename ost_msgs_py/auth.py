@@ -79,8 +79,9 @@ _TRAILER = 16  # counter, signer, the tag vector's length: the bytes before the 
 _NO_TAG = bytes(TAG)
 
 # Why a message was dropped: the counts of a run's transport stats (AgentReport.dropped, in order).
-UNSIGNED, FORGED, REPLAYED, MALFORMED = "unsigned", "forged", "replayed", "malformed"
-REASONS = (UNSIGNED, FORGED, REPLAYED, MALFORMED)
+# (stale: a membership message that does not fit the team — ost_ros.realtime.membership.misfit)
+UNSIGNED, FORGED, REPLAYED, MALFORMED, STALE = "unsigned", "forged", "replayed", "malformed", "stale"
+REASONS = (UNSIGNED, FORGED, REPLAYED, MALFORMED, STALE)
 
 
 class AuthError(InterfaceError):

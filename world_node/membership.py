@@ -46,7 +46,7 @@ from ost_ros.node.params import ParameterError, declare_role, node_scenario
 from ost_ros.node.plumbing import Liveliness
 from ost_ros.node.run import run_node
 from ost_ros.node.signing import NodeAuth, node_auth
-from ost_ros.realtime.membership import Declaration, Monitor
+from ost_ros.realtime.membership import Declaration, Monitor, misfit
 from ost_ros.realtime.messages import Back, BaseStopped, Hello, Lost, Mark, Need, StopBase
 from ost_ros.runconfig import WORLD
 
@@ -193,6 +193,10 @@ class Membership:
             self.monitor.wanted.add(s.step)  # every member will need that batch
         if isinstance(s.message, Back):
             b = s.message
+            why = misfit(b, self.ids, self.monitor.lives)
+            if why is not None:
+                self.stale(tp.message_topic(Back), sender, why)
+                return
             self.monitor.lives[b.agent] = max(self.monitor.lives.get(b.agent, 0), b.incarnation)
         self.heard_from(sender)
 
@@ -210,10 +214,18 @@ class Membership:
     def on_hello(self, h: Hello) -> None:
         """A robot declared out asks to come back: from now on the monitor waits for its
         watermark again (a member readmits it with a stamped Back)."""
-        if h.sender in self.heard:
+        why = misfit(h, self.ids, self.monitor.lives)
+        if why is not None:
+            self.stale(rtp.HELLOS, h.sender, why)
+        elif h.sender in self.heard:
             self.node.get_logger().info(f"agent {h.sender} asks to come back (life {h.incarnation})")
             self.monitor.hear(h, math.inf)
             self.announce(self.monitor.tick(math.inf))
+
+    def stale(self, topic: str, sender: int, why: str) -> None:
+        """A membership message that does not fit the team: dropped, counted, warned (throttled)."""
+        self.guard.drop(f"{auth.STALE}: {why}")
+        self.throttle.warn(topic, f"agent {sender}", f"{auth.STALE}: {why}")
 
     def heard_from(self, agent: int) -> None:
         """What the monitor may count on of ``agent`` moved: it commits what every member has

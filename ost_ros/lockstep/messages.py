@@ -356,7 +356,7 @@ class AgentReport:
     messages: int  # protocol messages this agent sent
     view: str = ""  # what agents must agree on (CCP: schedule, HCP: groups)
     run: str = ""  # the world's run id (strays of other runs are dropped)
-    dropped: tuple[int, ...] = ()  # messages it dropped for their signature: unsigned, forged, replayed
+    dropped: tuple[int, ...] = ()  # messages it dropped, by auth.REASONS: unsigned, forged, replayed, ...
     lag: float = -1.0  # realtime runs: the most a batch was taken after its stamp (steps); -1: lockstep
     version: int = RUNTIME_VERSION
 

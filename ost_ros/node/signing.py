@@ -68,7 +68,7 @@ class NodeAuth:
         self.dropped[reason.split(":", 1)[0]] += 1
 
     def counts(self) -> dict[str, int]:
-        """Messages dropped by this node: unsigned, forged, replayed, malformed."""
+        """Messages dropped by this node: unsigned, forged, replayed, malformed, stale."""
         return {r: self.dropped.get(r, 0) for r in auth.REASONS}
 
 

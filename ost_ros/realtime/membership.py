@@ -23,9 +23,10 @@ The same object serves the in-process run (:mod:`ost_ros.realtime.run`) and a me
 from __future__ import annotations
 
 import math
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 
-from ost_ros.realtime.messages import MONITOR, Back, Envelope, Hello, Mark, Need
+from ost_ros.realtime.messages import MONITOR, Back, Envelope, Hello, Lost, Mark, Need
 
 # Where a robot stands in the team at a time, as an observer of the run sees it (the animation):
 IN = ""  # a member
@@ -33,6 +34,28 @@ SILENT = "silent"  # its process stopped, not declared yet (every batch waits fo
 OUT = "out"  # declared out, not back yet (its base stopped)
 DEAD = "dead"  # failed for good
 ABSENT = "absent"  # not joined yet
+
+
+def misfit(payload: object, team: Collection[int], lives: Mapping[int, int]) -> str | None:
+    """Why a membership message does not fit the team (None: it does) — a Hello, a notice or a
+    Back from or about a robot not on the team, or for a life older than the one ``lives`` knows
+    (a copy of the newest is fine: a robot says its Hello again when peers come back). Such a
+    message is dropped, warned about and counted by the node that receives it (``stale``)."""
+    if isinstance(payload, Hello):
+        who, life, what = payload.sender, payload.incarnation, "hello"
+    elif isinstance(payload, Lost):
+        who, life, what = payload.agent, payload.incarnation, "notice"
+    elif isinstance(payload, Back) or (isinstance(payload, Envelope) and isinstance(payload.message, Back)):
+        b = payload if isinstance(payload, Back) else payload.message
+        who, life, what = b.agent, b.incarnation, "back"
+    else:
+        return None
+    if who not in team:
+        return f"a {what} for agent {who}, not on the team"
+    now = lives.get(who, 0)
+    if life < now:
+        return f"a {what} for life {life} of agent {who}, whose life now is {now}"
+    return None
 
 
 @dataclass

@@ -96,7 +96,7 @@ def test_a_genuine_message_passes_once_at_every_receiver(keys):
         assert recv.receive(data) is None
         assert log.lines == [f"dropped message on {TOPIC} from agent 0: replayed: counter {data_counter(data)} "
                              "of agent 0 seen before"]  # fmt: skip
-        assert guard.counts() == {"unsigned": 0, "forged": 0, "replayed": 1, "malformed": 0}
+        assert guard.counts() == {"unsigned": 0, "forged": 0, "replayed": 1, "malformed": 0, "stale": 0}
 
 
 def data_counter(data: bytes) -> int:

@@ -177,6 +177,43 @@ rclpy.spin(node)
 """
 
 
+# Membership messages that do not fit the team, on an insecure run (anyone may publish there):
+# a Hello from a robot not on the team and one for a life older than robot 1's, again and again
+# until the run's result is out.
+STALE_HELLOS = r"""
+import time, rclpy
+from rclpy.qos import QoSProfile
+from ost_msgs_py import wire
+from ost_ros.node import realtime as rtp
+from ost_ros.node.signing import node_auth
+from ost_ros.node.transport import LOCKSTEP_QOS
+from ost_ros.realtime.messages import Hello
+rclpy.init()
+node = rclpy.create_node("stale", namespace="/ost")
+pub = node.create_publisher(wire.ros_type(Hello), rtp.HELLOS, LOCKSTEP_QOS)
+guard = node_auth("", True, 9)
+end = time.monotonic() + 120
+while time.monotonic() < end:
+    guard.publish(pub, Hello(9, 1, 0, (0, 0)), run="")
+    guard.publish(pub, Hello(1, -1, 0, (0, 0)), run="")
+    rclpy.spin_once(node, timeout_sec=0.5)
+"""
+
+
+def test_membership_messages_that_do_not_fit_the_team_are_dropped_and_named(tmp_path):
+    """Bad input: a Hello from a robot not on the team, or for a life older than the robot's,
+    is dropped with a throttled warning naming it (``stale``), counted; the run keeps every
+    promise, nobody is readmitted or leaves because of it."""
+    stale = {"stale": [sys.executable, "-c", STALE_HELLOS]}
+    result, _agents, procs = _run_prepared(tmp_path, lambda _n, argv: argv, lambda _a: stale, ["--insecure"])
+    kept_its_promise(result, 6)
+    assert result["membership"]["rejoins"] == 0 and result["failures"] == []
+    said = procs.log("membership") + procs.log("agent_0")
+    assert "stale: a hello for agent 9, not on the team" in said
+    assert "stale: a hello for life -1 of agent 1, whose life now is 0" in said
+    assert "Traceback" not in said
+
+
 def test_a_robot_that_starts_late_keeps_what_its_peers_said(tmp_path):
     """A robot starts on the bases' first clock message, which reaches robots at different
     times: what its peers say before it starts is kept for its start (dropped, a message or a

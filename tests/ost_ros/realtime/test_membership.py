@@ -12,6 +12,8 @@ from ost_ros.coordination import CoordinationPolicy
 from ost_ros.messages import ObjectInfo
 from ost_ros.model import AgentSpec, Grid, Scenario, Subarea
 from ost_ros.protocols.ccp import CcpSettings
+from ost_ros.realtime.membership import misfit
+from ost_ros.realtime.messages import Back, Envelope, Hello, Lost, Mark
 from ost_ros.realtime.net import Latency, Split
 from ost_ros.realtime.run import run_realtime
 from ost_ros.scenario import generate_scenario
@@ -181,3 +183,28 @@ def test_a_batch_asked_for_ahead_is_announced_by_the_one_who_asked_once_its_cloc
     )  # fmt: skip
     assert r.completed, r.error
     assert report.disagreements == 0 and all(o.delivered is not None for o in r.objects)
+
+
+def test_a_membership_message_that_does_not_fit_the_team_is_named():
+    """Bad input: a Hello, notice or Back from or about a robot not on the team, or for a life
+    older than the newest the receiver knows, is dropped (``stale``) with the reason; a copy of
+    the newest is not (a robot says its Hello again when peers come back)."""
+    team, lives = (0, 1, 2), {1: 2}
+    assert misfit(Hello(7, 1, 0, (0, 0)), team, lives) == "a hello for agent 7, not on the team"
+    assert misfit(Hello(1, 1, 0, (0, 0)), team, lives) == "a hello for life 1 of agent 1, whose life now is 2"
+    assert (
+        misfit(Hello(1, 2, 0, (0, 0)), team, lives) is None
+        and misfit(Hello(1, 3, 0, (0, 0)), team, lives) is None
+    )
+    assert misfit(Lost(9, 4, ()), team, lives) == "a notice for agent 9, not on the team"
+    assert misfit(Lost(1, 4, (), incarnation=0), team, lives) == (
+        "a notice for life 0 of agent 1, whose life now is 2"
+    )
+    back = Back(0, 5, 1, 1, 0, (0, 0))
+    assert misfit(back, team, lives) == "a back for life 1 of agent 1, whose life now is 2"
+    assert misfit(Envelope(0, 5, 1, back), team, lives) == misfit(back, team, lives)
+    assert misfit(Back(0, 5, 2, 1, 0, (0, 0)), team, lives) is None
+    assert misfit(Mark(0, 3, 1), team, lives) is None  # not a membership message
+    assert (
+        misfit(Hello(2, -1, 0, (0, 0)), team, lives) == "a hello for life -1 of agent 2, whose life now is 0"
+    )
