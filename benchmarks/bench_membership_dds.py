@@ -95,6 +95,35 @@ def one(
     return result
 
 
+def pair(base: dict, fault: dict, **extra: object) -> dict:
+    """One pair's row: what both runs promise, the fault run's membership figures (``extra``)
+    and its makespan against the run without the fault."""
+    ratio = fault["makespan"] / base["makespan"] - 1 if base["makespan"] and fault["makespan"] else None
+    m = fault.get("membership", {})
+    return {
+        "completed": bool(base["completed"] and fault["completed"]),
+        "disagreements": base["disagreements"] + fault["disagreements"],
+        "out_at_end": m.get("out_at_end", []),
+        **extra,
+        "ratio": ratio,
+    }
+
+
+def table(title: str, what: str, rows: list[dict]) -> list[str]:
+    """The report's head: what was run, and what every pair promises."""
+    return [
+        f"# {title} (benchmarks/bench_membership_dds.py)",
+        "",
+        what,
+        "",
+        "| | |",
+        "|---|---|",
+        f"| both runs completed | {sum(r['completed'] for r in rows)} of {len(rows)} |",
+        f"| disagreements | {sum(r['disagreements'] for r in rows)} |",
+        f"| robots out at the end | {sum(len(r['out_at_end']) for r in rows)} |",
+    ]
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=5)
@@ -123,34 +152,25 @@ def main() -> int:
         fault = one(scenario, a.rtf, a.stop, a.at)
         m = fault.get("membership", {})
         rows.append(
-            {
-                "completed": bool(base["completed"] and fault["completed"]),
-                "disagreements": base["disagreements"] + fault["disagreements"],
-                "declared": m.get("declared", 0),
-                "rejoins": m.get("rejoins", 0),
-                "out_at_end": m.get("out_at_end", []),
-                "back_after_s": fault["back_after_s"],
-                "ratio": fault["makespan"] / base["makespan"] - 1
-                if base["makespan"] and fault["makespan"]
-                else None,
-            }
+            pair(
+                base,
+                fault,
+                declared=m.get("declared", 0),
+                rejoins=m.get("rejoins", 0),
+                back_after_s=fault["back_after_s"],
+            )
         )
         print(f"  pair {k + 1}/{a.runs}: {rows[-1]}", file=sys.stderr)
     backs = [r["back_after_s"] for r in rows if r["back_after_s"] is not None]
     ratios = [r["ratio"] for r in rows if r["ratio"] is not None]
-    lines = [
-        "# Membership over DDS (benchmarks/bench_membership_dds.py)",
-        "",
+    what = (
         f"{a.runs} pairs of runs, N={a.agents}, M={a.objects}, 120×60, rtf {a.rtf:g}; robot 2 stopped "
-        f"{a.stop:g} s from sim time {a.at:g} in the second of each pair.",
-        "",
-        "| | |",
-        "|---|---|",
-        f"| both runs completed | {sum(r['completed'] for r in rows)} of {len(rows)} |",
-        f"| disagreements | {sum(r['disagreements'] for r in rows)} |",
-        f"| declared out / back | {sum(r['declared'] for r in rows)} / {sum(r['rejoins'] for r in rows)} |",
-        f"| robots out at the end | {sum(len(r['out_at_end']) for r in rows)} |",
-    ]
+        f"{a.stop:g} s from sim time {a.at:g} in the second of each pair."
+    )
+    lines = table("Membership over DDS", what, rows)
+    lines.append(
+        f"| declared out / back | {sum(r['declared'] for r in rows)} / {sum(r['rejoins'] for r in rows)} |"
+    )
     if backs:
         lines.append(
             f"| resume → back in the team (wall s) | median {statistics.median(backs):.2f}, max {max(backs):.2f} |"
@@ -186,35 +206,17 @@ def splits(a: argparse.Namespace) -> int:
         fault = one(scenario, a.rtf, None, a.at, [*hosts, "--split", f"{groups}:{int(a.at)}:{a.split}"])
         m = fault.get("membership", {})
         (cut,) = m.get("splits", [{}])
-        rows.append(
-            {
-                "completed": bool(base["completed"] and fault["completed"]),
-                "disagreements": base["disagreements"] + fault["disagreements"],
-                "declared": m.get("declared", 0),
-                "out_at_end": m.get("out_at_end", []),
-                "agree_after_s": cut.get("agree_after_s"),
-                "ratio": fault["makespan"] / base["makespan"] - 1
-                if base["makespan"] and fault["makespan"]
-                else None,
-            }
-        )
+        rows.append(pair(base, fault, declared=m.get("declared", 0), agree_after_s=cut.get("agree_after_s")))
         print(f"  pair {n + 1}/{a.runs}: {rows[-1]}", file=sys.stderr)
     agree = sorted(r["agree_after_s"] for r in rows if r["agree_after_s"] is not None)
     ratios = [r["ratio"] for r in rows if r["ratio"] is not None]
-    lines = [
-        "# A partition over DDS (benchmarks/bench_membership_dds.py --split)",
-        "",
+    what = (
         f"{a.runs} pairs of runs, N={a.agents}, M={a.objects}, 120×60, rtf {a.rtf:g}, three simulated hosts; "
         f"in the second of each pair no traffic between robots {groups.replace('/', ' | ')} from sim time "
-        f"{a.at:g} for {a.split} s.",
-        "",
-        "| | |",
-        "|---|---|",
-        f"| both runs completed | {sum(r['completed'] for r in rows)} of {len(rows)} |",
-        f"| disagreements | {sum(r['disagreements'] for r in rows)} |",
-        f"| robots declared out / out at the end | {sum(r['declared'] for r in rows)} / "
-        f"{sum(len(r['out_at_end']) for r in rows)} |",
-    ]
+        f"{a.at:g} for {a.split} s."
+    )
+    lines = table("A partition over DDS", what, rows)
+    lines.append(f"| robots declared out | {sum(r['declared'] for r in rows)} |")
     if agree:
         p99 = agree[min(len(agree) - 1, int(0.99 * len(agree)))]
         lines.append(
@@ -246,35 +248,26 @@ def joins(a: argparse.Namespace) -> int:
         back = [t for kind, who, t in m.get("events", []) if kind == "back" and who == 2]
         works = any(2 in o["agents"] and back and o["start"] > back[0] for o in fault["objects"])
         rows.append(
-            {
-                "completed": bool(base["completed"] and fault["completed"]),
-                "disagreements": base["disagreements"] + fault["disagreements"],
-                "out_at_end": m.get("out_at_end", []),
-                "started": joined.get("started"),
-                "back_sim": back[0] if back else None,
-                "back_after_s": fault["back_after_s"],
-                "works": works,
-                "ratio": fault["makespan"] / base["makespan"] - 1
-                if base["makespan"] and fault["makespan"]
-                else None,
-            }
+            pair(
+                base,
+                fault,
+                started=joined.get("started"),
+                back_sim=back[0] if back else None,
+                back_after_s=fault["back_after_s"],
+                works=works,
+            )
         )
         print(f"  pair {n + 1}/{a.runs}: {rows[-1]}", file=sys.stderr)
     backs = [r["back_after_s"] for r in rows if r["back_after_s"] is not None]
     ratios = [r["ratio"] for r in rows if r["ratio"] is not None]
-    lines = [
-        "# A robot that joins over DDS (benchmarks/bench_membership_dds.py --join)",
-        "",
+    what = (
         f"{a.runs} pairs of runs, N={a.agents}, M={a.objects}, 120×60, rtf {a.rtf:g}; in the second of "
-        f"each pair robot 2's process starts once the run's sim time reaches {a.at:g} (--join 2:{int(a.at)}).",
-        "",
-        "| | |",
-        "|---|---|",
-        f"| both runs completed | {sum(r['completed'] for r in rows)} of {len(rows)} |",
-        f"| disagreements | {sum(r['disagreements'] for r in rows)} |",
-        f"| robots out at the end | {sum(len(r['out_at_end']) for r in rows)} |",
-        f"| the joiner carried an object after joining | {sum(r['works'] for r in rows)} of {len(rows)} |",
-    ]
+        f"each pair robot 2's process starts once the run's sim time reaches {a.at:g} (--join 2:{int(a.at)})."
+    )
+    lines = table("A robot that joins over DDS", what, rows)
+    lines.append(
+        f"| the joiner carried an object after joining | {sum(r['works'] for r in rows)} of {len(rows)} |"
+    )
     if backs:
         lines.append(
             f"| its process start → in the team (wall s) | median {statistics.median(backs):.2f}, "
