@@ -254,11 +254,8 @@ def _settings() -> tuple[Setting, ...]:
           "faults", lo=0, hi=64, metavar="K", launch=hosts_only),
         S("loss", 0, "with --hosts: packet loss on every host (%)", "faults", lo=0, hi=100,
           metavar="PCT", launch=hosts_only),
-        S("discovery", "multicast", "how participants find each other: on one host multicast (its "
-          "loopback) or server (a Fast DDS discovery server: a large team comes up faster); with "
-          "--hosts also static", "faults",
-          choices=("multicast", "static", "server"),
-          launch="ost up / ost_up.sh start the discovery server and make the simulated hosts"),
+        S("discovery", "multicast", "with --hosts: how participants find each other", "faults",
+          choices=("multicast", "static", "server"), launch=hosts_only),
         S("split", [], "with --realtime --hosts K: no traffic between groups of robots from sim "
           "time T for S wall seconds (each group on hosts of its own; the world's host, with the "
           "membership node, reaches every robot; repeatable)", "faults", metavar="GROUPS:T:S",
@@ -428,7 +425,7 @@ class RunConfig:
         if self["hosts"]:
             if not is_root:
                 raise ConfigError("hosts", "simulated hosts need root (network namespaces)")
-        elif self["loss"] or self["discovery"] == "static":
+        elif self["loss"] or self["discovery"] != "multicast":
             raise ConfigError("loss" if self["loss"] else "discovery", "needs --hosts K")
         if self["keys"] and self["insecure"]:
             raise ConfigError("keys", "--keys and --insecure exclude each other")

@@ -36,7 +36,6 @@ DOMAIN_LOCKS = Path(tempfile.gettempdir()) / "ost_domain_locks"
 RUN_FILE, ENV_FILE, PROCESSES = "run.json", "env.sh", "processes"
 READY, PROGRESS, RESULT = "ready", "progress", "result.json"
 DISCOVERY_PORT = 11811
-LOCAL_DISCOVERY_PORT = 7000  # + the domain id: --discovery server on one host
 Say = Callable[[str], None]
 
 
@@ -384,17 +383,12 @@ def _environment(run: Run, owner: int) -> None:
         elif cfg["discovery"] == "server":
             env["ROS_DISCOVERY_SERVER"] = f"{ips[0]}:{DISCOVERY_PORT}"
             run.processes.append(_discovery_server(run, ips[0], DISCOVERY_PORT))
-    elif cfg["discovery"] == "server":  # on this host: a port of the run's own domain, below
-        port = LOCAL_DISCOVERY_PORT + domain  # the ports of every DDS domain (7400 + 250 x id ...)
-        env["ROS_DISCOVERY_SERVER"] = f"127.0.0.1:{port}"
-        run.processes.append(_discovery_server(run, "127.0.0.1", port))
     run.env = env
 
 
 def _discovery_server(run: Run, ip: str, port: int) -> Process:
-    """A Fast DDS discovery server (--discovery server) on the first simulated host, or on this
-    one. The wheel's binary finds Fast DDS in the venv's lib/, its bundled libraries beside the
-    wheel."""
+    """A Fast DDS discovery server on the first host (--discovery server). The wheel's binary
+    finds Fast DDS in the venv's lib/, its bundled libraries beside the wheel."""
     venv = run.bin_dir.parent
     libs = [str(venv / "lib"), *map(str, venv.glob("lib/python3*/site-packages/ros_fastrtps.libs"))]
     old = os.environ.get("LD_LIBRARY_PATH")

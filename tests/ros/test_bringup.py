@@ -38,20 +38,6 @@ def test_dds_run_equals_ost_sim(tmp_path, n, m, seed, w, h, ci):
     assert "discovery complete" in run.stderr
 
 
-def test_a_run_on_one_host_with_a_discovery_server(tmp_path):
-    """``--discovery server`` without simulated hosts: a Fast DDS discovery server on 127.0.0.1
-    (a port of the run's domain) that every process of the run is a client of; the run is
-    ``ost sim``'s, and the ros2 CLI sees the run's topics as a super client (env.sh)."""
-    path, expected = _reference(tmp_path, 4, 8, 3, 30, 12, 1)
-    run_dir = tmp_path / "run"
-    run = ost_up("--scenario", str(path), "--discovery", "server", "--json", "--run-dir", str(run_dir))
-    assert run.returncode == 0, run.stderr
-    assert result_json(run.stdout) == expected
-    env = (run_dir / "env.sh").read_text()
-    assert "ROS_DISCOVERY_SERVER=127.0.0.1:" in env
-    assert "discovery_server" in (run_dir / "processes").read_text()
-
-
 def test_without_event_skipping_too(tmp_path):
     path, expected = _reference(tmp_path, 4, 8, 3, 30, 12, 1)
     run = ost_up("--scenario", str(path), "--json", "--no-skip", "--run-dir", str(tmp_path / "run"))
