@@ -402,11 +402,12 @@ def _tail(path: Path, n: int) -> list[str]:
     return _text(path).splitlines()[-n:]
 
 
-def _clean_shm(before: set[str]) -> None:
-    """Fast DDS shared-memory files that appeared during the run and no process maps any more."""
+def _clean_shm(before: set[str], prefixes: tuple[str, ...] = SHM_PREFIXES) -> None:
+    """Shared-memory files (Fast DDS's, or those of ``prefixes``) that appeared since ``before``
+    and no process maps any more."""
     if not SHM.is_dir():
         return
-    new = [f for f in set(os.listdir(SHM)) - before if f.startswith(SHM_PREFIXES)]
+    new = [f for f in set(os.listdir(SHM)) - before if f.startswith(prefixes)]
     if not new:
         return
     mapped: set[str] = set()

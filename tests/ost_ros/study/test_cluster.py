@@ -19,9 +19,21 @@ from pathlib import Path
 import pytest
 
 from ost_ros.cli import main
+from ost_ros.commands import supervise
 from tests.corpus.harness import EXPECTED, digests_of, run_reproduction
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
+
+
+@pytest.fixture(autouse=True)
+def _semaphores_left():
+    """The worker processes these tests kill leave their multiprocessing semaphores in /dev/shm
+    (``sem.mp-*``, 12 a run): removed after each test, those no live process maps."""
+    shm = Path("/dev/shm")
+    before = set(os.listdir(shm)) if shm.is_dir() else set()
+    yield
+    supervise._clean_shm(before, ("sem.mp-",))
+
 
 WANT = json.loads(EXPECTED.read_text())["reproduce-quick"]
 QUICK = ["reproduce", "--quick", "--out", "{out}"]
