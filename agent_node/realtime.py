@@ -48,6 +48,7 @@ from ost_ros.realtime.agent import AskFeedback, Output, Publish, RealtimeAgent, 
 from ost_ros.realtime.base import mirror_of, unpack
 from ost_ros.realtime.membership import misfit
 from ost_ros.realtime.messages import (
+    Back,
     BaseClock,
     BaseEvent,
     BaseGoal,
@@ -204,9 +205,9 @@ class RealtimeAgentNode(Node):
     def unmatched(self) -> list[tuple[Any, str, int, int]]:
         """The endpoints whose matching is not complete: (endpoint, what, matched, needed) —
         every peer on every topic (the monitor too on the messages and marks), the world's. A
-        robot that joins later is not awaited; and one that joins awaits no peer (some may be dead
-        by then): the world's endpoints and the monitor's suffice, and each peer, once matched,
-        says everything again to it (:meth:`readers_back`)."""
+        robot that joins later is not awaited; and one that joins awaits no peer but one (some may
+        be dead by then): beside the world's endpoints and the monitor's, each peer, once
+        matched, says everything again to it (:meth:`readers_back`)."""
         n = 1 if self.me in self.joining else len(self.ids) - len(self.joining)
         counts: list[tuple[Any, str, int]] = [
             *((pub, f"{tp.message_topic(kind)} readers", n + 1) for kind, pub in self.kind_pubs.items()),
@@ -390,12 +391,9 @@ class RealtimeAgentNode(Node):
         if why is not None:  # (a copy of the newest life's is fine: said again after a cut)
             self.guard.drop(f"{auth.STALE}: {why}")
             topic = (
-                rtp.HELLOS
-                if isinstance(payload, Hello)
-                else rtp.LOST
-                if isinstance(payload, Lost)
-                else "back"
+                rtp.HELLOS if isinstance(payload, Hello) else rtp.LOST if isinstance(payload, Lost) else ""
             )
+            topic = topic or tp.message_topic(Back)
             self.throttle.warn(topic, f"agent {getattr(payload, 'sender', '?')}", f"{auth.STALE}: {why}")
             return
         if not self.report_sent and not self.done:
