@@ -18,6 +18,7 @@ import os
 import signal
 import sys
 import time
+from typing import Any
 
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -31,7 +32,13 @@ from ost_ros.lockstep.agent import AgentRuntime, ProtocolViolation
 from ost_ros.lockstep.messages import Acted, AgentReport, Ready, Resend, RunEnd, Sample, Tick
 from ost_ros.model import Scenario
 from ost_ros.node import transport as tp
-from ost_ros.node.params import ParameterError, declare_agent, param_from_args, realtime_from_args
+from ost_ros.node.params import (
+    ParameterError,
+    declare_agent,
+    param_from_args,
+    realtime_from_args,
+    robot_node_options,
+)
 from ost_ros.node.plumbing import Alive, renew_endpoints
 from ost_ros.node.run import run_node
 from ost_ros.node.signing import node_auth
@@ -49,8 +56,8 @@ class AgentNode(Node):
     """``<ns>/agent_<id>`` (default namespace ``/ost``): parameters → core agent →
     :class:`AgentRunner` on its topics."""
 
-    def __init__(self, name: str = "agent"):
-        super().__init__(name, namespace=tp.NAMESPACE)
+    def __init__(self, name: str = "agent", **options: Any):
+        super().__init__(name, namespace=tp.NAMESPACE, **options)
         scenario, policy, runtime = load_agent(self)
         self.runner = AgentRunner(self, scenario, policy, runtime)
 
@@ -331,19 +338,20 @@ def main(args=None) -> int:
     argv = sys.argv if args is None else args
     agent_id = agent_id_from_args(argv)
     name = tp.agent_node_name(agent_id) if agent_id is not None else "agent"
+    options = robot_node_options(argv)
     if realtime_from_args(argv):
         from agent_node.realtime import RealtimeAgentNode
 
         return run_node(
             "agent_node",
-            lambda: RealtimeAgentNode(name),
+            lambda: RealtimeAgentNode(name, **options),
             args,
             done=lambda node: node.done,
             code=lambda node: node.exit_code,
         )
     return run_node(
         "agent_node",
-        lambda: AgentNode(name),
+        lambda: AgentNode(name, **options),
         args,
         done=lambda node: node.runner.done,
         code=lambda node: node.runner.exit_code,

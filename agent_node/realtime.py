@@ -76,8 +76,8 @@ DEBUG = bool(os.environ.get("OST_RT_DEBUG"))
 class RealtimeAgentNode(Node):
     """``<ns>/agent_<id>`` of a realtime run (see the module docstring)."""
 
-    def __init__(self, name: str = "agent"):
-        super().__init__(name, namespace=tp.NAMESPACE)
+    def __init__(self, name: str = "agent", **options: Any):
+        super().__init__(name, namespace=tp.NAMESPACE, **options)
         p, cfg, scenario, _spec = declare_agent(self)
         ids = tuple(a.id for a in scenario.agents)
         me = p["agent_id"]

@@ -14,9 +14,11 @@ bin="${OST_VENV:-$repo/.venv}/bin"
 case " $* " in *" -h "* | *" --help "*) exec "$bin/ost" up --help ;; esac
 run_dir="$("$bin/ost" up --prepare "$@")" || exit $?
 
-# 2. One process per line: the world node, one agent node per robot (and the watch node for
-#    --record/--foxglove). Then this shell becomes the supervisor (`ost up --supervise`, same
-#    PID, so the processes stay its children): it waits for the files the nodes write (ready,
+# 2. One process per line: the world node, the membership node (realtime), the watch node for
+#    --record/--foxglove, and one agent node per robot with --spawn exec. Then this shell becomes
+#    the supervisor (`ost up --supervise`, same PID, so the processes stay its children): it forks
+#    the robots of --spawn fork (the default: their code imported once, ost_ros/commands/spawn.py)
+#    and those that join later when due, waits for the files the nodes write (ready,
 #    progress, result.json), names a process that dies, tears everything down on the result,
 #    on Ctrl-C or on a failure, and prints the result.
 start() {

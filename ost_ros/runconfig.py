@@ -194,6 +194,13 @@ def _settings() -> tuple[Setting, ...]:
           "membership_node process of its own, started beside the world; the world has no "
           "membership role) or world (the role in the world's process)", "ROS", W,
           choices=("node", "world")),
+        S("spawn", "fork", "how ost up / ost_up.sh start the robots on this host: fork (the robot "
+          "node's code imported once, a process forked per robot: a team of 50 comes up sooner) or "
+          "exec (each from its executable, as on robots)", "ROS", choices=("fork", "exec"),
+          launch="ros2 launch starts each process from its executable"),
+        S("param_services", False, "the robots' nodes answer `ros2 param` (rclpy's parameter and "
+          "type-description services: 14 DDS endpoints a robot that every process of the run "
+          "discovers; off, a team of 50 comes up sooner)", "ROS", A),
         S("rediscover_s", REDISCOVER_S, "create anew the endpoints whose matching has not moved for "
           "this long at start (s)", "ROS", WA, 0.1, 3600.0, option=False),
         S("observers", 0, "readers beside the team (a recorder, a live view) the start waits for",

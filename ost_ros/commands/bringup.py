@@ -116,6 +116,16 @@ class Run:
 
         return host(self.netns, p.host % self.config["hosts"]) if self.netns else ""
 
+    def forked(self, p: Process) -> bool:
+        """Whether the supervisor forks it (``--spawn fork``: a robot on this host,
+        :mod:`ost_ros.commands.spawn`) rather than a shell or itself starting its executable."""
+        return p.executable == "agent_node" and self.config["spawn"] == "fork" and not self.host_of(p)
+
+    def listed(self, p: Process) -> bool:
+        """Whether ``processes`` lists it (what a shell starts): not one that joins later, nor
+        one the supervisor forks."""
+        return p.at < 0 and not self.forked(p)
+
     @property
     def agents(self) -> list[Process]:
         return [p for p in self.processes if p.executable == "agent_node"]
@@ -142,7 +152,7 @@ class Run:
             "".join(
                 f"{p.name}\t{self.host_of(p) or '-'}\t{shlex.join(p.argv(self))}\n"
                 for p in self.processes
-                if p.at < 0  # (one that joins later: the supervisor starts it, --join)
+                if self.listed(p)  # (the supervisor starts the rest: joiners, robots it forks)
             )
         )
 

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
+from ost_ros.commands import spawn
 from ost_ros.commands.bringup import PROGRESS, READY, RESULT, Process, Run, release
 from ost_ros.errors import UsageError
 
@@ -42,8 +43,13 @@ class Interrupted(Exception):
 
 
 def start(run: Run, p: Process, extra: list[str] | None = None) -> int:
-    """Start one process of the run (on its simulated host, if any), output to its log; its PID."""
+    """Start one process of the run (on its simulated host, if any), output to its log; its PID.
+    A robot ``run.forked`` is forked from this process when it may (:mod:`.spawn`)."""
     argv = p.argv(run) + (extra or [])
+    if run.forked(p) and spawn.preload():
+        pid = spawn.fork_robot(argv, run.env, run.file(f"{p.name}.log"))
+        run.file(f"{p.name}.pid").write_text(f"{pid}\n")
+        return pid
     host = run.host_of(p)
     if host:
         argv = ["ip", "netns", "exec", host, *argv]
@@ -55,10 +61,11 @@ def start(run: Run, p: Process, extra: list[str] | None = None) -> int:
     return child.pid
 
 
-def start_all(run: Run) -> dict[str, int]:
+def start_all(run: Run, listed: bool = True) -> dict[str, int]:
     """Every process of the run that starts with it, in its order: name -> PID (one that joins
-    later: :class:`Joins`)."""
-    return {p.name: start(run, p) for p in run.processes if p.at < 0}
+    later: :class:`Joins`). ``listed=False``: only those a shell does not start from
+    ``processes`` (``ost_up.sh``: the robots forked here)."""
+    return {p.name: start(run, p) for p in run.processes if p.at < 0 and (listed or not run.listed(p))}
 
 
 def _reap(pid: int) -> int | None:

@@ -91,7 +91,8 @@ def cmd_up(args: argparse.Namespace) -> int:
     if args.supervise:
         run = bringup.Run.load(args.supervise)
         # (a robot that joins later has no PID yet: the supervisor starts it, supervise.Joins)
-        pids = {p.name: supervise._pid(run.file(f"{p.name}.pid")) for p in run.processes if p.at < 0}
+        pids = {p.name: supervise._pid(run.file(f"{p.name}.pid")) for p in run.processes if run.listed(p)}
+        pids.update(supervise.start_all(run, listed=False))  # (the robots it forks, --spawn fork)
         return supervise.Supervisor(run, pids).supervise()
     if args.down:
         d = Path(args.down)

@@ -15,6 +15,7 @@ from typing import Any
 import yaml
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 from ost_ros.errors import OstError
 from ost_ros.yamlload import safe_load
@@ -139,7 +140,26 @@ def param_from_args(argv: list[str], name: str) -> Any:
     return value
 
 
+def flag_from_args(argv: list[str], name: str) -> bool:
+    """Whether the ROS arguments set the bool parameter ``name`` true."""
+    value = param_from_args(argv, name)
+    return value is True or (isinstance(value, str) and value.strip().lower() in ("true", "1", "yes"))
+
+
 def realtime_from_args(argv: list[str]) -> bool:
     """Whether the ROS arguments ask for a realtime node (``realtime:=true``)."""
-    value = param_from_args(argv, "realtime")
-    return value is True or (isinstance(value, str) and value.strip().lower() in ("true", "1", "yes"))
+    return flag_from_args(argv, "realtime")
+
+
+def robot_node_options(argv: list[str]) -> dict[str, Any]:
+    """What a robot's node is built with (``rclpy.node.Node`` keywords): without rclpy's parameter
+    and type-description services unless ``param_services:=true``. They are 14 DDS endpoints a
+    robot that every participant of the run discovers and keeps in its graph, and nobody of the
+    team calls them: at N=50 they are a third of the run's endpoints and of its bring-up
+    (docs/ros.md, "Bring-up"). The robot still declares its parameters (read-only)."""
+    if flag_from_args(argv, "param_services"):
+        return {}
+    return {
+        "start_parameter_services": False,
+        "parameter_overrides": [Parameter("start_type_description_service", value=False)],
+    }

@@ -5,6 +5,8 @@ tests/ros/test_bringup.py.)"""
 
 import os
 import shlex
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -29,7 +31,8 @@ def _release_domains(monkeypatch, tmp_path):
 
 def test_the_run_directory_of_a_generated_scenario(tmp_path, capsys):
     d = prepare(tmp_path, "--agents", "4", "--objects", "6", "--seed", "2", "--width", "30", "--height", "12",
-                "--nmax", "3", "--protocol", "ncp", "--ncp-delta", "0.5", "--kill-agent", "2:40")  # fmt: skip
+                "--nmax", "3", "--protocol", "ncp", "--ncp-delta", "0.5", "--kill-agent", "2:40",
+                "--spawn", "exec")  # fmt: skip
     assert capsys.readouterr().out.strip() == str(d.resolve())
     ost(["generate", "--agents", "4", "--objects", "6", "--seed", "2", "--width", "30", "--height", "12",
          "--nmax", "3"])  # fmt: skip
@@ -70,7 +73,7 @@ def test_a_team_replaces_the_scenarios(tmp_path):
         ]
     )
     d = prepare(tmp_path, "--scenario", str(tmp_path / "s.yaml"), "--agents", "5", "--protocol", "hcp")
-    assert [line.split("\t")[0] for line in (d / "processes").read_text().splitlines()][-1] == "agent_4"
+    assert [p.name for p in bringup.Run.load(d).processes][-1] == "agent_4"
     world = yaml.safe_load((d / "world.params.yaml").read_text())["/**"]["ros__parameters"]
     assert world["agents"] == 5 and world["scenario"] == str((tmp_path / "s.yaml").resolve())
 
@@ -124,7 +127,7 @@ def test_a_robot_that_joins_is_started_by_the_supervisor_not_the_script(tmp_path
     but in run.json with the sim time it starts at; world and agents are told who joins."""
     d = tmp_path / "run"
     assert ost(["up", "--prepare", "--agents", "4", "--objects", "4", "--nmax", "2", "--realtime",
-                "--join", "2:50", "--run-dir", str(d)]) == 0  # fmt: skip
+                "--join", "2:50", "--spawn", "exec", "--run-dir", str(d)]) == 0  # fmt: skip
     names = [line.split("\t")[0] for line in (d / "processes").read_text().splitlines()]
     assert "agent_2" not in names and "agent_3" in names
     run = bringup.Run.load(d)
@@ -133,6 +136,36 @@ def test_a_robot_that_joins_is_started_by_the_supervisor_not_the_script(tmp_path
     for role in ("world", "agent"):
         assert "joins: '2:50'" in (d / f"{role}.params.yaml").read_text()
     assert ost(["up", "--down", str(d)]) == 0
+
+
+@pytest.mark.parametrize(
+    "spawn, listed", [("fork", ["world"]), ("exec", ["world", "agent_0", "agent_1", "agent_2"])]
+)
+def test_robots_the_supervisor_forks_are_not_the_scripts(tmp_path, spawn, listed):
+    """``--spawn fork`` (the default): the script starts the world, the supervisor forks the
+    robots (ost_ros/commands/spawn.py); ``--spawn exec``: the script starts every process."""
+    d = tmp_path / "run"
+    assert ost(["up", "--prepare", "--agents", "3", "--objects", "4", "--nmax", "2", "--spawn", spawn,
+                "--run-dir", str(d)]) == 0  # fmt: skip
+    names = [line.split("\t")[0] for line in (d / "processes").read_text().splitlines()]
+    assert names == listed
+    run = bringup.Run.load(d)
+    assert [run.forked(p) for p in run.processes] == [False] + [spawn == "fork"] * 3
+    assert ost(["up", "--down", str(d)]) == 0
+
+
+def test_a_supervisor_with_threads_does_not_fork(tmp_path):
+    """spawn.preload: a process forks robots only while it has one thread (a fork copies only
+    the calling thread); it imports the robot's code without starting one."""
+    code = (
+        "import threading, time\n"
+        "from ost_ros.commands import spawn\n"
+        "print(spawn.preload(), spawn.threads())\n"
+        "threading.Thread(target=time.sleep, args=(2,)).start()\n"
+        "print(spawn.preload())\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["True", "1", "False"]
 
 
 def exit_code(argv: list[str]) -> int:

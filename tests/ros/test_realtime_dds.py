@@ -105,8 +105,9 @@ def _run_prepared(tmp_path, edit, extra=None, options=(), late=None):
     starts process ``name`` only once ``who`` has logged ``text``. Its result and processes."""
     path = _scenario(tmp_path)
     run_dir = tmp_path / "run"
+    # (--spawn exec: every process listed in `processes`, the test starting each as a shell does)
     prep = [str(BIN / "ost"), "up", "--prepare", "--scenario", str(path), "--realtime", "--rtf", "50",
-            "--run-dir", str(run_dir), *options]  # fmt: skip
+            "--spawn", "exec", "--run-dir", str(run_dir), *options]  # fmt: skip
     subprocess.run(prep, check=True, capture_output=True)
     lines = [line.split("\t") for line in (run_dir / "processes").read_text().splitlines()]
     agents = [name for name, _host, _cmd in lines if name.startswith("agent_")]
@@ -356,7 +357,7 @@ def test_a_team_whose_world_has_no_membership_role_runs_with_a_membership_node(t
     path = _scenario(tmp_path, agents=5, objects=8, seed=2)
     run_dir = tmp_path / "run"
     prep = [str(BIN / "ost"), "up", "--prepare", "--scenario", str(path), "--realtime", "--rtf", "50",
-            "--run-dir", str(run_dir)]  # fmt: skip
+            "--spawn", "exec", "--run-dir", str(run_dir)]  # fmt: skip
     subprocess.run(prep, check=True, capture_output=True)
     lines = [line.split("\t") for line in (run_dir / "processes").read_text().splitlines()]
     domain = free_domain()

@@ -121,7 +121,9 @@ def test_topics_echo_params_and_ros2_run_on_a_live_run(tmp_path, procs, domain):
         *keys,
     ]
     procs.start("world", "world_node", *world_args)
-    procs.start("agent_0", "agent_node", "-p", f"scenario:={path}", "-p", "agent_id:=0", *keys)
+    # (its parameter services on: a robot answers ros2 param only when asked to, --param-services)
+    agent_0 = ["-p", f"scenario:={path}", "-p", "agent_id:=0", "-p", "param_services:=true", *keys]
+    procs.start("agent_0", "agent_node", *agent_0)
     procs.wait_for("world", "waiting for 2 agents")  # agent_1 missing: the graph holds still
 
     want = expected_topics("ccp", 2)
