@@ -3,7 +3,8 @@
     agent_node --ros-args -p agent_id:=3 -p scenario:=run.yaml -p ci:=1
 
 Parameters: the run configuration's agent settings (:func:`ost_ros.runconfig.of_node`, read-only,
-each with its description and range: ``ros2 param describe /ost/agent_0 ci``) — ``agent_id`` and
+each with its description and range: ``ros2 param describe /ost/agent_0 ci`` when it runs with
+``param_services:=true``, :func:`ost_ros.node.params.robot_node_options`) — ``agent_id`` and
 ``scenario`` first, the protocol and its options, the coordination trigger, fault injection
 (``die_at_step``, ``mute_negotiation_from``), the liveliness lease, keys, executor. The agent is
 built by its protocol's factory (the registry) and runs unchanged: the node only orders its calls

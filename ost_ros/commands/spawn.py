@@ -22,7 +22,6 @@ import gc
 import importlib
 import os
 import signal
-import stat
 import sys
 from pathlib import Path
 
@@ -42,6 +41,10 @@ PRELOAD = (
     "ost_msgs_py.auth",
 )
 _PR_SET_NAME = 15
+_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+# What each signal did in this process before a supervisor took it over (imported first): a
+# robot gets that back — an ignored SIGHUP (nohup, ost_up.sh --background) stays ignored.
+_INHERITED = {sig: signal.getsignal(sig) for sig in _SIGNALS}
 
 
 def threads() -> int:
@@ -70,12 +73,17 @@ def preload() -> bool:
 def fork_robot(argv: list[str], env: dict[str, str], log: Path) -> int:
     """A robot node's process, forked: ``argv`` as its executable's (``agent_node --ros-args
     ...``), ``env`` on top of this process's, output appended to ``log``; its PID."""
+    # (blocked across the fork: a signal between it and the child's own handlers would run the
+    # supervisor's in the child)
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
     pid = os.fork()
     if pid:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         return pid
     code = 70  # EX_SOFTWARE: the node never returned its own code
     try:
         _become_robot(env, log)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         sys.argv = list(argv)
         from agent_node.agent_node import main
 
@@ -96,26 +104,23 @@ def fork_robot(argv: list[str], env: dict[str, str], log: Path) -> int:
 def _become_robot(env: dict[str, str], log: Path) -> None:
     """The child's start: the signals, files and name a process started from its executable
     would have."""
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, signal.SIG_DFL)  # (the supervisor's handlers raise in its own code)
+    for sig, handler in _INHERITED.items():  # (the supervisor's handlers raise in its own code)
+        signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
     os.environ.update(env)
     out = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
-    null = os.open(os.devnull, os.O_RDONLY)
+    null = os.open(os.devnull, os.O_RDWR)
+    # Every descriptor the supervisor holds — the pipes its caller reads to the end, a lock —
+    # becomes /dev/null: the robot keeps none of them, and the numbers stay taken, so a Python
+    # object of the parent that still names one can never close a descriptor the robot opens.
+    for fd in _open_fds():
+        if fd > 2 and fd not in (out, null):
+            with contextlib.suppress(OSError):
+                os.dup2(null, fd)
     os.dup2(null, 0)
     os.dup2(out, 1)
     os.dup2(out, 2)
     os.close(out)
     os.close(null)
-    # The pipes and sockets the supervisor holds (its caller reads its output to the end): a
-    # robot must not keep them open. Regular files stay (a Python object of the parent may own one).
-    for fd in _open_fds():
-        if fd > 2:
-            try:
-                mode = os.fstat(fd).st_mode
-            except OSError:
-                continue
-            if stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode) or stat.S_ISCHR(mode):
-                os.close(fd)
     sys.stdout = open(1, "w", buffering=1, closefd=False)  # noqa: SIM115 (the process's own)
     sys.stderr = open(2, "w", buffering=1, closefd=False)  # noqa: SIM115
     _set_name(b"agent_node")
@@ -129,6 +134,7 @@ def _open_fds() -> list[int]:
 
 
 def _set_name(name: bytes) -> None:
-    """The process's name as ``ps -o comm``, ``top`` and ``pgrep agent_node`` show it."""
+    """The process's short name, as ``ps -o comm``, ``top`` and ``pgrep agent_node`` show it (its
+    command line stays the supervisor's: ``pgrep -f`` and ``ps -ef`` show that)."""
     with contextlib.suppress(OSError, AttributeError):
         ctypes.CDLL(None).prctl(_PR_SET_NAME, ctypes.c_char_p(name[:15]), 0, 0, 0)

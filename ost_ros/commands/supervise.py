@@ -61,11 +61,11 @@ def start(run: Run, p: Process, extra: list[str] | None = None) -> int:
     return child.pid
 
 
-def start_all(run: Run, listed: bool = True) -> dict[str, int]:
-    """Every process of the run that starts with it, in its order: name -> PID (one that joins
-    later: :class:`Joins`). ``listed=False``: only those a shell does not start from
-    ``processes`` (``ost_up.sh``: the robots forked here)."""
-    return {p.name: start(run, p) for p in run.processes if p.at < 0 and (listed or not run.listed(p))}
+def at_start(run: Run, listed: bool = True) -> list[Process]:
+    """Every process of the run that starts with it, in its order (one that joins later:
+    :class:`Joins`). ``listed=False``: only those a shell does not start from ``processes``
+    (``ost_up.sh``: the robots forked here)."""
+    return [p for p in run.processes if p.at < 0 and (listed or not run.listed(p))]
 
 
 def _reap(pid: int) -> int | None:
@@ -196,10 +196,20 @@ class Joins:
 class Supervisor:
     """One run's processes until its result (see the module docstring)."""
 
-    def __init__(self, run: Run, pids: dict[str, int], err: TextIO = sys.stderr, out: TextIO = sys.stdout):
+    def __init__(
+        self,
+        run: Run,
+        pids: dict[str, int],
+        err: TextIO = sys.stderr,
+        out: TextIO = sys.stdout,
+        start: list[Process] | None = None,
+    ):
+        """``pids``: the processes already started (by a shell); ``start``: those it starts
+        itself, under its signal handlers (Ctrl-C while they start tears down what started)."""
         # (a PID <= 0 is no process: waitpid and kill would take it for the whole group)
         self.run, self.err, self.out = run, err, out
         self.pids = {name: pid for name, pid in pids.items() if pid > 0}
+        self.pending = list(start or [])
         self.cfg = run.config
         self.stay = bool(self.cfg["background"])
         self.respawns = self.cfg["respawn_world"]
@@ -239,6 +249,9 @@ class Supervisor:
         """Until the result (or a failure); the exit code ost up / ost_up.sh returns."""
         previous = {s: signal.signal(s, self._interrupt) for s in (signal.SIGINT, signal.SIGTERM)}
         try:
+            while self.pending:
+                p = self.pending.pop(0)
+                self.pids[p.name] = start(self.run, p)
             code = self._watch()
             if code is not None:
                 self.teardown()

@@ -92,8 +92,8 @@ def cmd_up(args: argparse.Namespace) -> int:
         run = bringup.Run.load(args.supervise)
         # (a robot that joins later has no PID yet: the supervisor starts it, supervise.Joins)
         pids = {p.name: supervise._pid(run.file(f"{p.name}.pid")) for p in run.processes if run.listed(p)}
-        pids.update(supervise.start_all(run, listed=False))  # (the robots it forks, --spawn fork)
-        return supervise.Supervisor(run, pids).supervise()
+        # (it starts the robots it forks, --spawn fork)
+        return supervise.Supervisor(run, pids, start=supervise.at_start(run, listed=False)).supervise()
     if args.down:
         d = Path(args.down)
         if not d.is_dir():
@@ -115,7 +115,7 @@ def cmd_up(args: argparse.Namespace) -> int:
         return 0
     if cfg["background"]:
         return _background(run)
-    return supervise.Supervisor(run, supervise.start_all(run)).supervise()
+    return supervise.Supervisor(run, {}, start=supervise.at_start(run)).supervise()
 
 
 def run_up(given: dict[str, Any]) -> tuple[int, str, str]:
@@ -133,7 +133,7 @@ def run_up(given: dict[str, Any]) -> tuple[int, str, str]:
     except UsageError as exc:
         return 2, "", f"ost up: error: {exc}\n"
     run.write()
-    code = supervise.Supervisor(run, supervise.start_all(run), err=err, out=out).supervise()
+    code = supervise.Supervisor(run, {}, err=err, out=out, start=supervise.at_start(run)).supervise()
     return code, out.getvalue(), err.getvalue()
 
 
@@ -153,7 +153,7 @@ def _background(run) -> int:
         try:
             with open(run.file("ost_up.out"), "w") as out, open(run.file("ost_up.log"), "w") as err:
                 os.dup2(err.fileno(), 2)
-                sup = supervise.Supervisor(run, supervise.start_all(run), err=err, out=out)
+                sup = supervise.Supervisor(run, {}, err=err, out=out, start=supervise.at_start(run))
                 code = sup.supervise()
         finally:
             os._exit(code)  # never back into the caller's code

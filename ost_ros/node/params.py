@@ -3,7 +3,8 @@ obeys — and the node layer's errors.
 
 Every parameter of the world and agent nodes defines the run and is read once at start, so all
 are read-only: ``ros2 param set /ost/agent_0 ci 5`` is refused with rclpy's reason ("Trying to
-set a read-only parameter") instead of answering "successful" and being ignored. Numeric ones
+set a read-only parameter") instead of answering "successful" and being ignored. (A robot answers
+``ros2 param`` only with ``param_services:=true``: :func:`robot_node_options`.) Numeric ones
 carry their range, which rclpy checks when the node starts (a value out of range stops the node
 with one line naming the parameter).
 """

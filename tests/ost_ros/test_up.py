@@ -168,6 +168,33 @@ def test_a_supervisor_with_threads_does_not_fork(tmp_path):
     assert out.split() == ["True", "1", "False"]
 
 
+def test_a_forked_robot_keeps_no_descriptor_of_its_supervisor_and_its_ignored_sighup(tmp_path):
+    """spawn._become_robot: every descriptor above 2 becomes /dev/null (a caller reading the
+    supervisor's pipe to its end gets the end), the log is its stdout and stderr, and a SIGHUP the
+    supervisor ignored before it took the signals over stays ignored."""
+    code = f"""
+import os, signal, sys
+signal.signal(signal.SIGHUP, signal.SIG_IGN)  # nohup, ost_up.sh --background
+from ost_ros.commands import spawn
+signal.signal(signal.SIGHUP, lambda *a: None)  # the supervisor's own
+signal.signal(signal.SIGTERM, lambda *a: None)
+r, w = os.pipe()
+pid = os.fork()
+if pid == 0:
+    spawn._become_robot({{"OST_TEST_ENV": "1"}}, {str(tmp_path / "robot.log")!r})
+    print(signal.getsignal(signal.SIGHUP) is signal.SIG_IGN, signal.getsignal(signal.SIGTERM) is signal.SIG_DFL,
+          os.environ["OST_TEST_ENV"], os.path.samestat(os.fstat(w), os.stat(os.devnull)))
+    sys.stdout.flush()
+    os._exit(0)
+os.close(w)
+print("eof" if os.read(r, 1) == b"" else "data")
+os.waitpid(pid, 0)
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
+    assert out.stdout.split() == ["eof"]
+    assert (tmp_path / "robot.log").read_text().split() == ["True", "True", "1", "True"]
+
+
 def exit_code(argv: list[str]) -> int:
     """What ``ost ARGV`` exits with (argparse itself exits on a bad flag)."""
     try:
