@@ -55,18 +55,22 @@ def threads() -> int:
         return 0  # no /proc: we cannot tell, so we do not fork
 
 
+_loaded = False
+
+
 def preload() -> bool:
-    """Import what every robot imports, once; whether this process may fork robots (one thread
-    before and after)."""
+    """Import what every robot imports (the first time); whether this process may fork robots
+    now (one thread: asked at every fork, a caller may have started one since). numpy's OpenBLAS
+    is held to one thread by ``ost_ros/commands/__init__.py``, which runs before this module."""
+    global _loaded
     if threads() != 1:
         return False
-    # numpy's OpenBLAS would start a thread per core on import (agent_node/__init__.py says why
-    # one is enough); set before numpy loads
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    for name in PRELOAD:
-        importlib.import_module(name)
-    # what is imported stays shared: the robots' collections do not walk (and so copy) it
-    gc.freeze()
+    if not _loaded:
+        for name in PRELOAD:
+            importlib.import_module(name)
+        # what is imported stays shared: the robots' collections do not walk (and so copy) it
+        gc.freeze()
+        _loaded = True
     return threads() == 1
 
 
