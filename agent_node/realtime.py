@@ -92,7 +92,7 @@ class RealtimeAgentNode(Node):
         self.rt.base_known(-1.0)  # nothing of its base known yet: it commits nothing
         # where an object is carried to: what the robot knows of it (it carries only objects it
         # has heard of)
-        self.mirror = mirror_of(team, me, lambda obj: self.rt.comm.knowledge.objects[obj].destination)
+        self.mirror = mirror_of(team, me, lambda obj: self.rt.destination(obj))
         self.index = ids.index(me)  # its place in the bases' clock
         self.fingerprint = tp.scenario_fingerprint(scenario)
         self.guard = node_auth(p["keys"], p["insecure"], me)

@@ -68,13 +68,22 @@ class ObjectFound(AgentMessage):
     version: int = SCHEMA_VERSION
 
 
+# The view of a decision taken having read every message before it (lockstep): a decision
+# without a barrier says the last batch it was taken on, and counts only if still sound then.
+ALL_READ = 2**31 - 1
+
+
 @dataclass(frozen=True)
 class SearchDone(AgentMessage):
-    """Broadcast once when an agent has swept its whole subarea."""
+    """Broadcast once when an agent has swept its whole subarea (HCP: and delivered its own
+    objects)."""
 
     TYPE: ClassVar[str] = "search_done"
     sender: int
     t: int
+    # HCP without a barrier: the last batch the sender had read (a part it inherited later is
+    # not done); ALL_READ: lockstep, or a protocol whose parts never change hands
+    view: int = ALL_READ
     version: int = SCHEMA_VERSION
 
 

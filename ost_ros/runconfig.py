@@ -490,6 +490,12 @@ class RunConfig:
     def check_joins(self, team: list[int]) -> None:
         """--join against the team (once the scenario is known): one error each."""
         joins, kills = self.joins(), self.kills()
+        if joins:
+            from ost_ros.realtime.run import refused
+
+            why = refused(self["protocol"], "join")
+            if why:
+                raise ConfigError("join", why)
         for a, t in sorted(joins.items()):
             if a not in team:
                 raise ConfigError("join", f"agent {a} is not in the team {team}")

@@ -184,6 +184,12 @@ def _faults(args: argparse.Namespace, scenario: Scenario, failures: dict[int, in
         if unknown:
             raise UsageError(f"--split: no agents {unknown} (team {sorted(ids)})")
     joins = dict(args.join)
+    if joins:
+        from ost_ros.realtime.run import refused
+
+        why = refused(args.protocol, "join")
+        if why:
+            raise UsageError(f"--join: {why}")
     if len(joins) != len(args.join):
         raise UsageError("--join: an agent can join only once")
     for a in joins:

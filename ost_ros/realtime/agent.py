@@ -242,6 +242,10 @@ class RealtimeAgent:
     def comm(self):
         return self.agent.comm
 
+    def destination(self, obj: int) -> Cell:
+        """Where a known object goes (its base's picture of a carry needs it)."""
+        return self.comm.knowledge.objects[obj].destination
+
     def base_known(self, t: float) -> None:
         """Every event of its base up to time ``t`` has been handled (an agent node: its base's
         clock says how many it has sent up to t, and all are in): it may commit up to t, and
@@ -342,8 +346,9 @@ class RealtimeAgent:
             self._decide_at(res.time, now)
         elif res.outcome in (ABORTED, REFUSED):
             self.goal, self._sweep, self._carry_started = None, None, -1
-            if res.code == "MEMBER_FAILED" and self.agent.current is not None:
-                self._blocked = self.agent.current.object  # until the comm hears of the failure
+            task = self._task()
+            if res.code == "MEMBER_FAILED" and task is not None:
+                self._blocked = task.object  # until the comm hears of the failure
             elif res.code in ("START", "PREEMPTED", "DELIVERED"):
                 # planned from a stale feedback (over DDS an answer from mid-carry can come after
                 # the carry's result: the object is delivered), or another client took its base
@@ -412,7 +417,7 @@ class RealtimeAgent:
         if self._status_due:
             self._status(fb, s)
         plan = a.plan(s, fb.cell)
-        searching = a.state is GlobalState.SEARCHING
+        searching = a.state.value == SEARCHING_STATE
         if plan.settled and not (searching and any(a.news(o) for o in fb.sensed)):
             self._follow_plan(plan[0], fb)
             return
@@ -434,7 +439,6 @@ class RealtimeAgent:
                 a.search.index = base + fb.index
 
     def _follow_plan(self, seg: Segment, fb: Feedback) -> None:
-        a = self.agent
         if seg.kind == "sweep":
             path = tuple(seg.path[seg.index :])
             self._goal(Follow(path, seg.state), fb, sweep=(seg.path, seg.index))
@@ -444,8 +448,9 @@ class RealtimeAgent:
         elif seg.kind == "wait":
             self._goal(Stand(seg.state), fb)
         else:
-            assert a.current is not None and a.current.object == seg.object
-            self._carry(a.current, seg.state, fb)
+            task = self._task()
+            assert task is not None and task.object == seg.object
+            self._carry(task, seg.state, fb)
 
     def _follow_action(self, action: Action, fb: Feedback) -> None:
         a = self.agent
@@ -462,14 +467,19 @@ class RealtimeAgent:
                 return  # the running goal makes this very move
             self._goal(Follow((fb.cell, nxt), action.state), fb)
         elif action.kind is ActionKind.CARRY:
-            assert a.current is not None and a.current.object == action.object
-            self._carry(a.current, action.state, fb)
+            task = self._task()
+            assert task is not None and task.object == action.object
+            self._carry(task, action.state, fb)
         else:
             g = self.goal
             if isinstance(g, Follow) and can_move(action.t, a.period):
                 self._goal(Stand(action.state), fb, force=True)  # it would move: stop it
             else:
                 self._goal(Stand(action.state), fb)
+
+    def _task(self) -> Assignment | None:
+        """What it holds or carries (or goes to): its schedule entry (the object and its group)."""
+        return self.agent.current
 
     def _carry(self, task: Assignment, state: str, fb: Feedback) -> None:
         if task.object == self._blocked:
@@ -522,7 +532,7 @@ class RealtimeAgent:
         """Taking up a task it will hold or carry, it asks now for the batches that settle it
         (:meth:`_frozen`): peers announce their watermarks as their clocks pass it, so on its
         arrival the gate is open, not a round trip away."""
-        task = self.agent.current
+        task = self._task()
         if task is None or self._asked_for is task:
             return
         self._asked_for = task

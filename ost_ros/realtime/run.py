@@ -32,6 +32,7 @@ from ost_ros.realtime.agent import (
 )
 from ost_ros.realtime.base import BaseMirror, mirror_of
 from ost_ros.realtime.comms import RtAuctionComm, RtCcpComm, RtGreedyComm, RtNcpComm
+from ost_ros.realtime.hcp import RtHcpAgent, RtHcpRuntime
 from ost_ros.realtime.membership import ABSENT, DEAD, IN, MONITOR, OUT, SILENT, Monitor
 from ost_ros.realtime.messages import Back, Digest, Envelope, Mark, Need, ObjectInfo
 from ost_ros.realtime.net import DELIVER, KILL, WAKE, WORLD, EventQueue, Latency, Network, Split
@@ -40,21 +41,34 @@ from ost_ros.result import RunResult
 from ost_ros.team import TeamInfo
 from ost_ros.world import World
 
-REALTIME = ("ccp", "ncp", "auction", "greedy")
-# Why the others do not run without a barrier (docs/realtime.md, "What each protocol guarantees").
-REFUSED = {
-    "hcp": "hcp does not run without a barrier: its requesters withdraw and ask again by what they "
-    "see when, so a request staffed in a batch its requester has not read yet leaves helpers "
-    "holding forever (no stamp rule fixes a decision taken on a stale view)",
+REALTIME = ("ccp", "ncp", "auction", "greedy", "hcp")
+# What a protocol cannot honour without a barrier (docs/realtime.md, "What each protocol
+# guarantees"): option -> why, in one line.
+REFUSED: dict[str, dict[str, str]] = {
+    "hcp": {
+        "join": "hcp takes no robot into the team after the start (--join): its owners and "
+        "heirs are fixed by the subareas of the robots there at the start",
+    },
 }
+
+
+def refused(protocol: str, option: str) -> str | None:
+    """Why ``protocol`` cannot honour ``option`` without a barrier (None: it can)."""
+    return REFUSED.get(protocol, {}).get(option)
+
+
+def _check_options(protocol: str, **given: bool) -> None:
+    """One-line :class:`ProtocolError` for an option given that the protocol cannot honour."""
+    for option, on in given.items():
+        why = refused(protocol, option)
+        if on and why:
+            raise ProtocolError(why)
 
 
 def check_realtime(protocol: str, policy: CoordinationPolicy | None = None, settings: Any = None) -> None:
     """One-line :class:`ProtocolError` if the protocol (or its options) cannot run without a
     barrier."""
     check(protocol, policy=policy)
-    if protocol in REFUSED:
-        raise ProtocolError(REFUSED[protocol])
     if protocol not in REALTIME:
         raise ProtocolError(f"{protocol} has no realtime runtime (realtime: {', '.join(REALTIME)})")
 
@@ -78,6 +92,8 @@ def make_agent(
     monitor: bool = False,
 ) -> RealtimeAgent:
     """One robot's realtime runtime (an agent node builds its own; the protocol already checked)."""
+    if protocol == "hcp":
+        return RtHcpRuntime(RtHcpAgent(agent_id, team), team.agent_ids, monitor=monitor)
     comm: RtCcpComm | RtNcpComm | RtAuctionComm | RtGreedyComm
     if protocol == "greedy":
         comm = RtGreedyComm(agent_id, team, policy)
@@ -592,13 +608,17 @@ def run_realtime(
     policy = policy or CoordinationPolicy()
     latency = latency or Latency()
     failures = dict(failures or {})
+    _check_options(protocol, join=bool(joins))
     monitor = bool(silences or joins)  # (without them, as before: the world declares the dead)
     agents = make_agents(scenario, protocol, policy, settings, monitor=monitor)
     if prepare is not None:
         prepare(agents)
     queue = EventQueue()
     run = _Run(
-        RealtimeWorld(scenario, speed_jitter, seed, tuple(stalls), tracking=mirrors),
+        # (a robot declared out is waited for unless the protocol never takes it back: HCP)
+        RealtimeWorld(
+            scenario, speed_jitter, seed, tuple(stalls), tracking=mirrors, wait_for_out=protocol != "hcp"
+        ),
         {ra.id: ra for ra in agents},
         Network(queue, latency, seed, splits=tuple(splits)),
         queue,
@@ -692,5 +712,6 @@ __all__ = [
     "check_realtime",
     "make_agent",
     "make_agents",
+    "refused",
     "run_realtime",
 ]

@@ -901,8 +901,10 @@ class RealtimeWorld:
             moved[leg.kind] += leg.route.moves * leg.route.factor
         if b.finished is not None:  # (a failed robot that had finished keeps it, as in lockstep)
             horizon = b.finished
+        elif b.died is not None:  # (a carry's last move under way when it died is made: counted)
+            horizon = max([b.died] + [leg.route.arrive(leg.route.moves) for leg in b.legs[-1:]])
         else:
-            horizon = b.died if b.died is not None else self.end
+            horizon = self.end
         idle = horizon - sum(moved.values()) - b.finished_total
         return AgentRecord(
             agent,

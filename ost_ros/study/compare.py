@@ -341,7 +341,7 @@ def report(rows: list[Row], cells: list[Cell], timing: Timing, figures: list[str
         lines.append(
             f"- Rows `… L={lat}`: the same variant without a barrier (`ost sim --latency {lat}`: every "
             "robot its own runtime, latency L + U[0, J] steps per message, seeded by the object "
-            "set), for every protocol that runs so; HCP does not (docs/realtime.md)."
+            "set), for every protocol (docs/realtime.md)."
         )
     lines += [
         "",

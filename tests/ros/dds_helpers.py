@@ -254,7 +254,11 @@ def kept_its_promise(result: dict, scenario_objects: int, dead: tuple[int, ...] 
     assert len(result["objects"]) == scenario_objects
     for o in result["objects"]:
         assert o["delivered"] is not None
-    groups = {e["object"]: e["agents"] for e in result["schedule"]}
-    for o in result["objects"]:  # carried by exactly the group every robot scheduled
-        assert sorted(o["agents"]) == sorted(groups[o["id"]])
+    if result["protocol"] == "hcp":  # no schedule: the groups its requesters staffed
+        for o in result["objects"]:
+            assert o["agents"] and len(set(o["agents"])) == len(o["agents"])
+    else:
+        groups = {e["object"]: e["agents"] for e in result["schedule"]}
+        for o in result["objects"]:  # carried by exactly the group every robot scheduled
+            assert sorted(o["agents"]) == sorted(groups[o["id"]])
     assert set(result["lag"]) == {str(a["id"]) for a in result["agents"] if a["id"] not in dead}

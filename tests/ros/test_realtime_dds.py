@@ -60,19 +60,23 @@ def test_a_realtime_run_keeps_the_protocols_promise(tmp_path, protocol):
 
 @pytest.mark.parametrize(
     "how",
-    [("--protocol", "greedy"), ("--protocol", "ccp", "--planner", "improved")],
-    ids=["greedy", "improved"],
+    [("--protocol", "greedy"), ("--protocol", "ccp", "--planner", "improved"), ("--protocol", "hcp")],
+    ids=["greedy", "improved", "hcp"],
 )
-def test_greedy_and_the_improved_planner_deliver_everything_with_ten_robots(tmp_path, how):
-    """Admitted without a barrier this round (docs/realtime.md, "What each protocol guarantees")."""
+def test_greedy_hcp_and_the_improved_planner_deliver_everything_with_ten_robots(tmp_path, how):
+    """Admitted without a barrier (docs/realtime.md, "What each protocol guarantees")."""
     path = tmp_path / "scenario.yaml"
-    path.write_text(dump_scenario(generate_scenario(10, 12, 4, Grid(60, 20), 3)))
+    scenario = generate_scenario(10, 12, 4, Grid(60, 20), 3)
+    path.write_text(dump_scenario(scenario))
     run = ost_up(
         "--scenario", str(path), *how, "--realtime", "--rtf", "100",
         "--json", "--run-dir", str(tmp_path / "run"), "--timeout", "240",
     )  # fmt: skip
     assert run.returncode == 0, run.stderr[-3000:]
-    kept_its_promise(result_json(run.stdout), 12)
+    result = result_json(run.stdout)
+    kept_its_promise(result, 12)
+    for o, spec in zip(result["objects"], scenario.objects):  # each by exactly its n_i robots
+        assert len(o["agents"]) == spec.required
 
 
 @pytest.mark.parametrize("monitor", ["node", "world"])
@@ -139,7 +143,7 @@ def _run_prepared(tmp_path, edit, extra=None, options=(), late=None):
 @pytest.mark.parametrize(
     ("args", "text"),
     [
-        (("--protocol", "hcp"), "hcp does not run without a barrier"),
+        (("--protocol", "hcp", "--join", "1:5"), "join: hcp takes no robot into the team"),
         (("--respawn-world", "1"), "--respawn-world: is for the lockstep run"),
     ],
 )

@@ -44,6 +44,7 @@ from enum import Enum
 from typing import ClassVar
 
 from ost_ros.messages import (
+    ALL_READ,
     FINISH_STATE,
     SEARCHING_STATE,
     Action,
@@ -113,6 +114,9 @@ class HcpAgent:
         self.sweeps_left: list[list[Cell]] = []  # inherited subareas still to sweep
         self.claimed: set[int] = set()  # objects it has taken as its own
         self.unsure: set[int] = set()  # inherited objects that may be delivered already
+        # the last batch its comm has read (without a barrier; lockstep: every one): its offers,
+        # withdrawals and part done say so, and count only if still sound then
+        self.view = ALL_READ
 
     # ------------------------------------------------------------------ step, part 1: act
 
@@ -167,12 +171,12 @@ class HcpAgent:
         if self.state is HcpState.REQUESTING:
             # A higher-priority request is open: give up mine (its offers lapse) and help there.
             assert self.current is not None
-            self._outbox.append(HelpRelease(self.id, self.t, self.current.id))
+            self._outbox.append(HelpRelease(self.id, self.t, self.current.id, self.view))
             self.state = HcpState.FETCHING
         if self.offering is None:
             where = self.comm.objects[best].location
             arrival = self.t + 1 + manhattan(self.position, where)
-            self._outbox.append(HelpOffer(self.id, self.t, best, self.comm.open[best], arrival))
+            self._outbox.append(HelpOffer(self.id, self.t, best, self.comm.open[best], arrival, self.view))
             self.offering = best
 
     def _motion(self) -> tuple[ActionKind, Cell, int]:
@@ -205,7 +209,7 @@ class HcpAgent:
             return None
         if not self.part_done_sent:
             self.part_done_sent = True
-            self._outbox.append(SearchDone(self.id, self.t))
+            self._outbox.append(SearchDone(self.id, self.t, self.view))
             self.comm.done_parts.add(self.id)  # my own part needs no round trip
         if self.comm.closed:
             self.state = HcpState.RETURNING
@@ -314,7 +318,7 @@ class HcpAgent:
             and self.current.required > len(self.comm.alive)
         ):
             if self.state is HcpState.REQUESTING:  # nobody left to come: withdraw, give it up
-                self._outbox.append(HelpRelease(self.id, t, self.current.id))
+                self._outbox.append(HelpRelease(self.id, t, self.current.id, self.view))
             self.current = None
             self.state = HcpState.DECISION
         for g in formed:
@@ -364,6 +368,14 @@ class HcpAgent:
         for o in lost.dropped:  # its own (requested by it, or carried alone), not a partner's
             if self.comm.requester.get(o.id, lost.agent) == lost.agent:
                 self._claim(o, t)
+        for oid, o in sorted(self.comm.fallen.items()):
+            # a load a robot of these parts dropped earlier and its heir (dead now) had taken as
+            # its own: maybe delivered already, so looked at on arrival — it may lie outside
+            # every subarea swept again
+            owner = self.comm.requester.get(oid, self.comm.dropped_by[oid])
+            if owner in parts and owner != lost.agent and oid not in self.claimed:
+                self._claim(o, t)
+                self.unsure.add(oid)
         for oid, req in sorted(self.comm.requester.items()):
             # objects it (or a robot it inherited from) asked help for: maybe delivered already,
             # so looked at on arrival (``unsure``); where it lies: its last notice or request

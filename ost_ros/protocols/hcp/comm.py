@@ -48,6 +48,8 @@ class HcpComm:
     broken: list[tuple[int, HelpGroup]] = field(default_factory=list)  # (dead agent, group)
     inherited: dict[int, tuple[int, tuple[int, ...]]] = field(default_factory=dict)  # -> (heir, parts)
     fallen: dict[int, ObjectInfo] = field(default_factory=dict)  # object -> where it was dropped
+    heir_since: dict[int, int] = field(default_factory=dict)  # heir -> the step it last inherited
+    dropped_by: dict[int, int] = field(default_factory=dict)  # fallen object -> the robot that fell
 
     def __post_init__(self) -> None:
         self._ids = frozenset(self.team.agent_ids)
@@ -71,11 +73,15 @@ class HcpComm:
         latest: dict[int, HelpGroup] = {}
         for g in self.groups:
             latest[g.object] = g
-        self.broken.extend((agent, g) for g in latest.values() if agent in g.agents)
+        # (a group broken by an earlier failure is not broken again: its object may be fetched
+        # by someone else by now)
+        gone = {id(g) for _, g in self.broken}
+        self.broken.extend((agent, g) for g in latest.values() if agent in g.agents and id(g) not in gone)
         parts = tuple(self.parts.pop(agent, [agent]))
         if agent not in self.done_parts and self.alive:
             heir = self.alive[0]  # the lowest-id survivor takes its parts
             self.inherited[agent] = (heir, parts)
+            self.heir_since[heir] = t
             self.parts[heir].extend(parts)
             self.done_parts.discard(heir)
         self.done_parts.discard(agent)
@@ -96,11 +102,13 @@ class HcpComm:
         for msg in _ordered(by_kind.get(AgentLost, []), lambda m: m.agent):
             for o in msg.dropped:  # where a dead robot's load lies (sensing gives its origin)
                 self.fallen[o.id] = o
+                self.dropped_by[o.id] = msg.agent
             self._lose(msg.agent, msg.t)
         for msg in by_kind.get(HelpAccept, ()):
             self._check_accept(msg)
         for msg in by_kind.get(SearchDone, ()):
-            if msg.sender in self._ids:
+            # (a part inherited after the last batch the sender had read is not done)
+            if msg.sender in self._ids and self.heir_since.get(msg.sender, -1) <= msg.view:
                 self.done_parts.add(msg.sender)
         formed: list[HelpGroup] = []
         if HelpOffer not in by_kind:  # staffing changes only with new offers
@@ -134,9 +142,21 @@ class HcpComm:
                 and msg.sender in ids
                 and msg.sender not in self.offered_to
                 and self.open[msg.object] != msg.sender
+                and not self._staffed_since(msg.sender, msg.view)
             ):
                 self.offers[msg.object][msg.sender] = msg.arrival
                 self.offered_to[msg.sender] = msg.object
+
+    def _staffed_since(self, agent: int, view: int) -> bool:
+        """Whether ``agent`` was put in a group after the last batch it had read (``view``;
+        lockstep: every one): its offer was decided on a stale view — it is busy there — and
+        counts for nobody (without a barrier, docs/realtime.md "HCP without a barrier")."""
+        for g in reversed(self.groups):
+            if g.t <= view:
+                return False
+            if agent in g.agents:
+                return True
+        return False
 
     def _check_accept(self, msg: HelpAccept) -> None:
         for g in reversed(self.groups):

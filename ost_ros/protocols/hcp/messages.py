@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from ost_ros.messages import SCHEMA_VERSION, AgentMessage, ObjectInfo
+from ost_ros.messages import ALL_READ, SCHEMA_VERSION, AgentMessage, ObjectInfo
 
 
 @dataclass(frozen=True)
@@ -29,6 +29,8 @@ class HelpOffer(AgentMessage):
     object: int
     requester: int
     arrival: int
+    # the last batch the sender had read when it offered (without a barrier; lockstep: ALL_READ)
+    view: int = ALL_READ
     version: int = SCHEMA_VERSION
 
 
@@ -52,4 +54,5 @@ class HelpRelease(AgentMessage):
     sender: int
     t: int
     object: int
+    view: int = ALL_READ  # as HelpOffer's
     version: int = SCHEMA_VERSION

@@ -11,7 +11,7 @@ from ost_ros.coordination import CoordinationPolicy
 from ost_ros.engines import finish_result, simulate
 from ost_ros.model import Grid, ObjectSpec, manhattan
 from ost_ros.protocols import make_agents
-from ost_ros.scenario import build_scenario, generate_objects
+from ost_ros.scenario import AgentSpec, build_scenario, generate_objects
 from ost_ros.world import World
 from tests.strategies import scenarios
 
@@ -99,3 +99,23 @@ def test_deterministic_and_messages_counted():
     s = build_scenario(Grid(30, 12), generate_objects(10, 3, Grid(30, 12), 4), n_agents=4, nmax=4)
     r1, r2 = simulate(s, "hcp"), simulate(s, "hcp")
     assert r1.to_dict() == r2.to_dict() and r1.completed and r1.messages > 0
+
+
+def test_a_load_dropped_twice_is_fetched_by_the_next_heir():
+    # Robot 3 dies carrying object 3 (lying in robot 2's subarea, swept already); robot 0 takes
+    # it up as heir and dies before fetching it: robot 1, heir of robot 0's parts, fetches it
+    # where it fell (its subarea swept again would never find it). It hung before.
+    objs = [
+        ObjectSpec(0, (4, 1), (3, 5), 1),
+        ObjectSpec(1, (4, 3), (7, 4), 1),
+        ObjectSpec(2, (5, 4), (5, 3), 1),
+        ObjectSpec(3, (6, 1), (0, 3), 1),
+        ObjectSpec(4, (7, 2), (7, 3), 1),
+    ]
+    bases = [(0, 0), (0, 0), (0, 0), (3, 1), (0, 0)]
+    s = build_scenario(
+        Grid(8, 6), objs, partition=(5, 1), agents=[AgentSpec(k, b) for k, b in enumerate(bases)], nmax=1
+    )
+    r = simulate(s, "hcp", failures={3: 5, 4: 0, 0: 6})
+    assert r.completed and not r.warnings
+    assert r.objects[3].agents == (1,)

@@ -70,7 +70,7 @@ def test_the_improved_planner_and_greedy_run_without_a_barrier(scenario, args):
         (("--latency", 1, "--stall", "1:2"), "expected AGENT:STEP:STEPS"),
         (("--latency", 1, "--stall", "9:2:3"), "no agent 9"),
         (("--latency", 1, "--speed-jitter", "-0.5"), "must be ≥ 0"),
-        (("--latency", 1, "--protocol", "hcp"), "hcp does not run without a barrier"),
+        (("--latency", 1, "--protocol", "hcp", "--join", "1:5"), "--join: hcp takes no robot into the team"),
         (("--latency", 1, "--engine", "step"), "--engine is for the lockstep engines"),
         (("--latency", 1, "--animate", "x.avi"), "--animate: x.avi: unsupported format '.avi'"),
         (("--latency", 1, "--animate", "/nonexistent/x.gif"), "no such directory"),

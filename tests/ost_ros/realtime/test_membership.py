@@ -17,7 +17,7 @@ from ost_ros.realtime.messages import Back, Envelope, Hello, Lost, Mark
 from ost_ros.realtime.net import Latency, Split
 from ost_ros.realtime.run import run_realtime
 from ost_ros.scenario import generate_scenario
-from tests.ost_ros.realtime.test_run import check_run, teams
+from tests.ost_ros.realtime.test_run import READMIT, check_run, teams
 
 
 @st.composite
@@ -56,7 +56,7 @@ def splits(draw, s):
 @given(data=st.data())
 def test_robots_declared_out_come_back_and_joiners_are_used_and_all_agree(data):
     """(1 000 runs of the same mix: benchmarks/bench_membership.py, figures in docs/realtime.md)"""
-    s, protocol, policy, how = data.draw(teams(agents=(2, 6)))
+    s, protocol, policy, how = data.draw(teams(agents=(2, 6), protocols=READMIT))
     kills, silences, joins = data.draw(faults(s))
     r, report = run_realtime(
         s,

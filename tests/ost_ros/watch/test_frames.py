@@ -19,7 +19,7 @@ from ost_ros.realtime.run import run_realtime
 from ost_ros.scenario import generate_scenario
 from ost_ros.watch.frames import FrameRecorder, RealtimeRecorder
 from tests.ost_ros.realtime.test_membership import faults, splits
-from tests.ost_ros.realtime.test_run import teams
+from tests.ost_ros.realtime.test_run import READMIT, teams
 
 
 class Truth:
@@ -123,7 +123,7 @@ def test_realtime_frames_are_the_world_at_their_step_and_watching_changes_nothin
     partitions): the run watched is the run unwatched, byte for byte; each frame is the world at
     its step (where robots were, what was delivered, who was in the team, the partition's
     sides); every first lift and delivery has its frame; the frames stay bounded."""
-    s, protocol, policy, how = data.draw(teams(agents=(2, 5)))
+    s, protocol, policy, how = data.draw(teams(agents=(2, 5), protocols=READMIT))
     kills, silences, joins = data.draw(faults(s))
     split = data.draw(splits(s))
     kw = dict(

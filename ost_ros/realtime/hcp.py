@@ -1,0 +1,268 @@
+"""HCP without a barrier: the help-based protocol's agent as a realtime body, its knowledge of
+requests and offers fed batch by batch (docs/realtime.md, "HCP without a barrier").
+
+HCP's decisions are each robot's own — an owner asks for help, an available robot offers, a
+requester withdraws for a request of higher priority — taken on what it has read so far. In
+lockstep everyone has read the same; without a barrier a robot may decide on a stale view. So the
+shared part — which requests are open, which offers stand, which groups are formed — is a
+function of the stamped batches alone, taken in stamp order by every robot, and a decision
+counts only if it is still sound where its stamp puts it:
+
+- a withdrawal (:class:`HelpRelease`) closes the request only if it is still open then: a
+  request staffed in a batch its requester had not read is carried all the same (the requester
+  reads it, holds, and its partners come);
+- an offer counts only if its sender was not put in a group after the last batch it had read
+  (:attr:`HelpOffer.view`): it is busy there, and the offer lapses for everyone alike;
+- a robot with an offer out starts none of its own objects until a batch at or past the offer's
+  stamp says whether it stands (the lockstep agent's rule, with "answered" read by stamp).
+
+Everything else is the lockstep agent's (:mod:`ost_ros.protocols.hcp.agent`), driven by the
+runtime of :mod:`ost_ros.realtime.agent` as the schedule agents are: goals to its base, a
+decision at each goal's end, each detection and each batch.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+from ost_ros.messages import AgentLost, AgentMessage
+from ost_ros.model import Cell
+from ost_ros.protocols.hcp.agent import HcpAgent, HcpState
+from ost_ros.protocols.hcp.comm import HcpComm, HelpGroup
+from ost_ros.protocols.hcp.messages import HelpOffer, HelpRelease, HelpRequest
+from ost_ros.realtime.agent import EPS, RealtimeAgent, _digest
+from ost_ros.realtime.messages import Digest, ObjectInfo
+from ost_ros.realtime.world import ABORTED, REFUSED, Carry, Detection, Feedback, GoalResult
+from ost_ros.search import SearchModule, route
+
+
+class RtHcpComm(HcpComm):
+    """HCP's knowledge without a barrier: a batch at a time (the world's stamped notice is a
+    failure as the lockstep's); it has nothing of its own to say and no comm event."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self.incarnation: dict[int, int] = {}  # (no robot comes back under HCP: always 0)
+        self.dropped: dict[int, ObjectInfo] = {}  # the batch's notices: where their loads lie
+
+    def receive(self, t: int, messages: Sequence[AgentMessage]) -> list[HelpGroup]:
+        # the realtime notice is a subclass: taken in as the lockstep's (by kind)
+        msgs = [_as_lost(m) if isinstance(m, AgentLost) else m for m in _withdrawn(messages)]
+        self.dropped = {o.id: o for m in msgs if isinstance(m, AgentLost) for o in m.dropped}
+        return super().receive(t, msgs)
+
+    def next_event(self, t: int) -> int | None:
+        return None
+
+    def drain(self) -> list[AgentMessage]:
+        return []
+
+    def cross_check(self, msg: AgentMessage) -> None:
+        """Nothing of HCP's is a cross-check (its accept joins a batch)."""
+
+
+def _withdrawn(messages: Sequence[AgentMessage]) -> list[AgentMessage]:
+    """The batch without each request its sender withdrew in the same batch (a batch holds a
+    sender's messages in the order it sent them; the lockstep comm takes withdrawals before
+    requests, which in lockstep never share a step)."""
+    asked: dict[tuple[int, int], int] = {}  # (sender, object) -> index of its request
+    gone: set[int] = set()
+    for k, m in enumerate(messages):
+        if isinstance(m, HelpRequest):
+            asked[(m.sender, m.object.id)] = k
+        elif isinstance(m, HelpRelease) and (m.sender, m.object) in asked:
+            gone.update((asked.pop((m.sender, m.object)), k))
+    return [m for k, m in enumerate(messages) if k not in gone] if gone else list(messages)
+
+
+def _as_lost(m: AgentLost) -> AgentLost:
+    return m if type(m) is AgentLost else AgentLost(m.agent, m.t, m.dropped)
+
+
+class RtHcpAgent(HcpAgent):
+    """The HCP agent as a realtime body: its offers are answered by stamp, its finds are its own
+    (never broadcast), a group broken by a failure is fetched where the notice says it lies."""
+
+    protocol = "hcp"
+    comm: RtHcpComm
+
+    def __init__(self, agent_id: int, team: Any) -> None:
+        super().__init__(agent_id, team)
+        self.comm = RtHcpComm(agent_id, team)
+        self.offer_stamp = -1  # the stamp of its last offer (its runtime says, as it sends it)
+        self.period = 1  # (HCP's teams are of unit speed)
+        self.reroute = False  # an inherited sweep to route from where it is at its next decision
+        self._read_at: Cell = self.position
+        self.moved_on = 0  # inherited sweeps routed from a cell other than where it read the notice
+        self.view = -1  # no batch read yet
+
+    def report_late(self, t: int, sensed: Sequence[ObjectInfo]) -> list[AgentMessage]:
+        """Its own objects its base sensed at step ``t`` (a network between them): claimed now —
+        HCP's finds are private, nothing to say."""
+        if self.state is HcpState.SEARCHING:
+            for o in sensed:
+                if self.news(o):
+                    self._claim(self.comm.fallen.get(o.id, o), t)
+        return []
+
+    def body_messages(self) -> list[AgentMessage]:
+        return self.outbox()
+
+    def communicate(self, t: int, messages: Sequence[AgentMessage]) -> None:
+        self.view = t  # (what it says while reading this batch is decided on it)
+        offering = self.offering
+        super().communicate(t, messages)
+        if offering is not None and self.offering is None and t < self.offer_stamp:
+            self.offering = offering  # not answered: the batch of its offer is still to come
+
+    def let_go(self, obj: int, why: str) -> None:
+        """Its base could not lift ``obj`` (``why``): it is not its to carry any more. A carry
+        of its own that is over (its result came after the feedback it decided on) says nothing;
+        anything else is a warning."""
+        if self.current is None or self.current.id != obj:
+            return
+        if not (self.state is HcpState.MOVING and why.startswith("delivered")):
+            self.comm.warnings.append(f"agent {self.id}: object {obj} let go, {why}")
+        self.current, self.helping = None, False
+        self.state = HcpState.DECISION
+
+    def _inherit(self, lost: AgentLost, parts: tuple[int, ...], t: int) -> None:
+        """As the lockstep agent's, but a robot whose sweep was done routes the inherited one
+        from where it is at its next decision (:meth:`resume_at`), not from where it last
+        decided (the lockstep agent reads a batch where it stands)."""
+        done, self.sweep_done = self.sweep_done, False
+        super()._inherit(lost, parts, t)
+        self.sweep_done, self.reroute = done, done
+        self._read_at = self.position
+
+    def resume_at(self, cell: Cell) -> None:
+        """A decision where ``cell`` is: the inherited sweep is routed from here."""
+        if self.reroute:
+            self.reroute = False
+            self.search = SearchModule(route([cell] + self.sweeps_left.pop(0)))
+            self.sweep_done = False
+            # (the lockstep agent routes from where it stood when it read the notice, walking
+            # back if it has moved since: counted, as the one way the two runs part at latency 0)
+            self.moved_on += cell != self._read_at
+
+    def _group_broken(self, t: int, dead: int, g: HelpGroup) -> None:
+        """As the lockstep agent's, but the object lies where the notice says (a load the dead
+        robot held or carried is dropped with it) — its own picture of where it is may be old."""
+        fallen = self.comm.dropped.get(g.object)
+        if (
+            fallen is not None
+            and self.current is not None
+            and self.current.id == g.object
+            and not self.helping
+            and self.comm.requester.get(g.object) == self.id
+        ):
+            self.current = replace(self.current, location=fallen.location)
+            self.comm.objects[g.object] = self.current
+            self.state = HcpState.FETCHING
+            return
+        if self.state is HcpState.MOVING:
+            self.state = HcpState.WAITING  # (no load moved without the dead robot's notice)
+        super()._group_broken(t, dead, g)
+
+
+_NOT_THERE = ("DELIVERED", "IN_TRANSIT", "NOT_AT_OBJECT")
+
+
+@dataclass(frozen=True)
+class _Task:
+    """What an HCP robot holds or carries: the object and its group (as a schedule entry)."""
+
+    object: int
+    agents: tuple[int, ...]
+
+
+@dataclass
+class RtHcpRuntime(RealtimeAgent):
+    """The realtime runtime of an HCP robot (the module docstring)."""
+
+    agent: RtHcpAgent  # type: ignore[assignment]
+
+    def destination(self, obj: int) -> Cell:
+        return self.comm.objects[obj].destination
+
+    def _task(self) -> _Task | None:  # type: ignore[override]
+        a = self.agent
+        if a.current is None:
+            return None
+        oid = a.current.id
+        group = next((g.agents for g in reversed(a.comm.groups) if g.object == oid), (self.id,))
+        return _Task(oid, group if self.id in group else (self.id,))
+
+    def on_result(self, res: GoalResult, now: float) -> list:
+        """As every robot's, but a hold or carry refused because the object is not there to lift
+        (delivered, carried by others, lying elsewhere) lets the object go: nobody's schedule will
+        tell an HCP robot otherwise, and deciding again would ask for the same lift."""
+        g = self.goal
+        gone = (
+            res.goal == self.goal_id
+            and isinstance(g, Carry)
+            and res.outcome in (ABORTED, REFUSED)
+            and res.code in _NOT_THERE
+        )
+        if gone and isinstance(g, Carry):
+            self.agent.let_go(g.object, f"{res.code.lower()} at {res.time:g}: {res.reason}")
+        out = super().on_result(res, now)
+        if not gone or self.out:
+            return out
+        self._decided = -1.0
+        self._decide_at(now, now)  # (what it does instead)
+        return out + self._flush(now)
+
+    def on_detection(self, det: Detection, now: float) -> list:
+        a = self.agent
+        if self.out or a.state is not HcpState.SEARCHING or not any(a.news(o) for o in det.objects):
+            return self._flush(now)
+        if self.remote_base or det.time < now - EPS:
+            # heard of late (its base across a network): claimed as of then, decided on at the
+            # next step (as a batch that changed something is)
+            a.report_late(math.ceil(det.time - EPS), det.sensed)
+            self._decide_at(math.floor(now + EPS) + 1, now)
+        else:
+            self._decide_at(det.time, now)
+        return self._flush(now)
+
+    def _sync(self, fb: Feedback, s: int) -> None:
+        super()._sync(fb, s)
+        self.agent.resume_at(fb.cell)
+        self.agent.view = self.batches.done  # what its decisions are taken on
+
+    def _send(self, message, time: float) -> None:
+        super()._send(message, time)
+        if isinstance(message, HelpOffer) and self.sent:
+            self.agent.offer_stamp = self.sent[-1][0]
+
+    def _sponsor(self, now: float) -> None:
+        """No robot comes back under HCP: a robot declared out stays out (its parts inherited)."""
+        self._hellos.clear()
+
+    def _take(self, t: int, now: float) -> None:
+        msgs = self.batches.take(t)
+        self.processed.add(t)
+        self.taken_at[t] = now
+        self.max_lag = max(self.max_lag, now - t)
+        a = self.agent
+        a.communicate(t, msgs)
+        if any(isinstance(m, AgentLost) for m in msgs):
+            self._blocked = -1  # the comm knows of the failure: its groups are settled again
+        for m in a.body_messages():
+            self._send(m, now)
+        view = self._schedule_view()
+        if view is not None:
+            self._view = view
+            self.digests[t] = Digest(self.id, t, len(a.comm.groups), _digest(repr(msgs)), _digest(view))
+            self._out.append(self.digests[t])
+        self._decide_at(math.floor(now + EPS) + 1, now)
+
+    def _schedule_view(self) -> str | None:
+        """The shared view: requests open, offers standing, groups formed, robots lost."""
+        c = self.agent.comm
+        view = repr((sorted(c.open.items()), sorted(c.offered_to.items()), c.groups, sorted(c.lost)))
+        return None if view == self._view else view
