@@ -240,12 +240,15 @@ def figure(data: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     names = sorted({k[0] for k in data}, key=lambda n: ("N=50" in n, n))
+    # one colour per variant in every panel (a panel may lack one: HEAVY)
+    labels = list(dict.fromkeys(k[1] for k in data if len(k) == 2))
+    colour = {label: f"C{i % 10}" for i, label in enumerate(labels)}
     fig, axes = plt.subplots(1, len(names), figsize=(11, 4.2), sharey=True)
     for ax, name in zip(np.atleast_1d(axes), names):
         for key, rel in data.items():
             if len(key) == 2 and key[0] == name:
                 label = key[1]
-                ax.plot(LATENCIES, [1 + r / 100 for r in rel], marker="o", label=label)
+                ax.plot(LATENCIES, [1 + r / 100 for r in rel], marker="o", label=label, color=colour[label])
         ax.set_title(name)
         ax.set_xlabel("latency L (steps; jitter up to L/2)")
         ax.set_yscale("log")
@@ -255,7 +258,8 @@ def figure(data: dict, path: Path) -> None:
         ax.axhline(1, color="grey", lw=0.8)
         ax.grid(alpha=0.3, which="both")
     np.atleast_1d(axes)[0].set_ylabel("makespan / ost sim's (log scale)")
-    np.atleast_1d(axes)[-1].legend(fontsize=8)
+    handles = {h.get_label(): h for ax in np.atleast_1d(axes) for h in ax.get_lines() if h.get_marker() == "o"}
+    np.atleast_1d(axes)[-1].legend([handles[k] for k in labels], labels, fontsize=8)
     fig.suptitle("The cost of latency without a barrier (0 disagreements in every run)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
