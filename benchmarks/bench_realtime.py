@@ -258,7 +258,9 @@ def figure(data: dict, path: Path) -> None:
         ax.axhline(1, color="grey", lw=0.8)
         ax.grid(alpha=0.3, which="both")
     np.atleast_1d(axes)[0].set_ylabel("makespan / ost sim's (log scale)")
-    handles = {h.get_label(): h for ax in np.atleast_1d(axes) for h in ax.get_lines() if h.get_marker() == "o"}
+    handles = {
+        h.get_label(): h for ax in np.atleast_1d(axes) for h in ax.get_lines() if h.get_marker() == "o"
+    }
     np.atleast_1d(axes)[-1].legend([handles[k] for k in labels], labels, fontsize=8)
     fig.suptitle("The cost of latency without a barrier (0 disagreements in every run)")
     fig.tight_layout()
