@@ -348,7 +348,13 @@ class RealtimeAgent:
             self.goal, self._sweep, self._carry_started = None, None, -1
             task = self._task()
             if res.code == "MEMBER_FAILED" and task is not None:
-                self._blocked = task.object  # until the comm hears of the failure
+                if self._member_lost(task):
+                    # its comm has heard of the failure already (the notice may be stamped well
+                    # before the abort reached it): decide on what the comm now says
+                    self._decided = -1.0
+                    self._decide_at(now, now)
+                else:
+                    self._blocked = task.object  # until the comm hears of the failure
             elif res.code in ("START", "PREEMPTED", "DELIVERED"):
                 # planned from a stale feedback (over DDS an answer from mid-carry can come after
                 # the carry's result: the object is delivered), or another client took its base
@@ -481,9 +487,14 @@ class RealtimeAgent:
         """What it holds or carries (or goes to): its schedule entry (the object and its group)."""
         return self.agent.current
 
+    def _member_lost(self, task: Assignment) -> bool:
+        lost = self.comm.lost
+        return any(j in lost for j in task.agents if j != self.id)
+
     def _carry(self, task: Assignment, state: str, fb: Feedback) -> None:
-        if task.object == self._blocked:
-            self._goal(Stand(state), fb)  # its group has lost a member: wait for the comm
+        if task.object == self._blocked or self._member_lost(task):
+            # its group has lost a member: wait for the comm (to hear of it, or to re-plan)
+            self._goal(Stand(state), fb)
             return
         if not self._frozen(task):
             self._goal(Stand(state), fb)  # a re-plan may still move it: wait for the comm
@@ -604,7 +615,13 @@ class RealtimeAgent:
         k = self.comm.knowledge
         a.tasks.clear()
         a._seen_schedule = len(k.schedule)
-        going = isinstance(self.goal, Carry) and self._carry_started == self.goal.object
+        # (a carry whose group has lost a member is over, even if its base has not said so yet:
+        # the notice may be stamped well before the abort reaches it)
+        going = (
+            isinstance(self.goal, Carry)
+            and self._carry_started == self.goal.object
+            and not (a.current is not None and self._member_lost(a.current))
+        )
         if a.current is not None and not going:
             a.current = None
             a._taken -= 1  # taken up, not begun: it goes back into the pool

@@ -99,6 +99,9 @@ class RtHcpAgent(HcpAgent):
         self.moved_on = 0  # inherited sweeps routed from a cell other than where it read the notice
         self.view = -1  # no batch read yet
 
+    def _read_up_to(self, t: int) -> None:
+        """(Its runtime says what it has read: the batches taken, not the step.)"""
+
     def report_late(self, t: int, sensed: Sequence[ObjectInfo]) -> list[AgentMessage]:
         """Its own objects its base sensed at step ``t`` (a network between them): claimed now —
         HCP's finds are private, nothing to say."""

@@ -114,19 +114,25 @@ class HcpAgent:
         self.sweeps_left: list[list[Cell]] = []  # inherited subareas still to sweep
         self.claimed: set[int] = set()  # objects it has taken as its own
         self.unsure: set[int] = set()  # inherited objects that may be delivered already
-        # the last batch its comm has read (without a barrier; lockstep: every one): its offers,
-        # withdrawals and part done say so, and count only if still sound then
+        # the last batch (lockstep: step) its comm has read: its offers, withdrawals and part
+        # done say so, and count only if still sound then
         self.view = ALL_READ
 
     # ------------------------------------------------------------------ step, part 1: act
 
     def act(self, obs: Observation) -> Action:
         self.t, self.position, self._obs = obs.t, obs.position, obs
+        self._read_up_to(obs.t - 1)
         if self.state is HcpState.SEARCHING:
             self._sense(obs)
         self._offer_or_withdraw()
         kind, direction, obj = self._motion()
         return Action(self.id, self.t, kind, direction, obj, self.state.value)
+
+    def _read_up_to(self, t: int) -> None:
+        """In lockstep it has read every step's messages before step ``t + 1``: what it says
+        now is decided on them (a part it inherits in this step's messages is not done yet)."""
+        self.view = t
 
     def _sense(self, obs: Observation) -> None:
         for o in obs.sensed:

@@ -119,3 +119,12 @@ def test_a_load_dropped_twice_is_fetched_by_the_next_heir():
     r = simulate(s, "hcp", failures={3: 5, 4: 0, 0: 6})
     assert r.completed and not r.warnings
     assert r.objects[3].agents == (1,)
+
+
+def test_an_heirs_part_done_said_in_the_step_it_inherits_is_not_done():
+    # Robot 2 dies at step 8, the step robot 0 (its heir) says its own part is done: that part
+    # done was decided before robot 0 read of its inheritance, so the team is not done — robot 0
+    # sweeps robot 2's subarea and the others stay to help with the object for two there. It hung.
+    s = build_scenario(Grid(12, 4), [ObjectSpec(0, (10, 2), (9, 0), 2)], partition=(3, 1), nmax=2)
+    r = simulate(s, "hcp", failures={2: 8})
+    assert r.completed and r.objects[0].delivered is not None

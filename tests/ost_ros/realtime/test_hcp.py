@@ -3,6 +3,8 @@ its stamp puts it (docs/realtime.md, "HCP without a barrier") — the comm's rul
 the runs that hung before each was in place. The promises over random runs are the property tests
 of test_run.py (HCP is one of their protocols)."""
 
+import pytest
+
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.messages import SearchDone
 from ost_ros.model import Grid, ObjectSpec
@@ -11,7 +13,7 @@ from ost_ros.realtime.hcp import RtHcpComm
 from ost_ros.realtime.messages import Lost, ObjectInfo
 from ost_ros.realtime.net import Latency
 from ost_ros.realtime.run import run_realtime
-from ost_ros.scenario import AgentSpec, build_scenario, generate_scenario
+from ost_ros.scenario import AgentSpec, build_scenario, generate_objects, generate_scenario
 from ost_ros.team import TeamInfo
 
 X = ObjectInfo(5, (3, 1), (0, 1), 2)
@@ -111,3 +113,26 @@ def test_a_robot_silent_past_the_timeout_is_out_for_good_and_its_part_inherited(
     )
     assert r.completed and report.disagreements == 0
     assert (report.declared, report.rejoins, report.out_at_end) == (1, 0, [2])
+
+
+@pytest.mark.parametrize(("protocol", "when"), [("hcp", 198), ("hcp", 200), ("ccp", 150), ("ccp", 152)])
+def test_a_partners_failure_heard_before_its_base_says_so_blocks_nobody(protocol, when):
+    """As over DDS: the monitor stamps robot 6's notice at its last watermark, which a survivor
+    can take before its base's abort of the carry with robot 6 reaches it (the move under way
+    ends first, then ``base_lag``). The abort must not block the object for good (HCP: its new
+    group held forever), and a carry whose group lost a member is not kept by the recovery as
+    under way (CCP: kept with the dead robot in its group, never to be lifted)."""
+    g = Grid(21, 10)
+    s = build_scenario(g, generate_objects(12, 728510, g, 6), partition=(3, 3), nmax=6)
+    r, report = run_realtime(
+        s,
+        protocol,
+        seed=832645,
+        failures={6: when},
+        speed_jitter=1.0,
+        base_lag=3.0,
+        declare_after=5.0,
+        silences=[(0, 1.0, 1.0)],
+        failure_timeout=60.0,
+    )  # fmt: skip  (the 1-step silence only brings the monitor in, as over DDS)
+    assert r.completed and report.disagreements == 0 and not r.warnings
