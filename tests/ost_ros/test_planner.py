@@ -1,11 +1,15 @@
 """The improved CCP planner (ost_ros.planner): the schedule read as a list reproduces Algorithm
-Coordination; the improvement is valid, deterministic and never costlier than the paper's; on
-the 12 small problems of the issue it is within 5 % of the optimum on average; in whole runs it
+Coordination; the improvement is valid, deterministic (the same schedule in another process,
+whatever its hash seed) and never costlier than the paper's; on the 12 small problems of the
+issue it is within 0.5 % of the optimum on average; in whole runs it
 keeps CCP's promises (planned = executed, engines equal, agents agree) with triggers, unequal
 speeds, failures and the coordinator organisation."""
 
 import dataclasses
+import os
 import statistics
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -70,14 +74,71 @@ def test_improved_schedules_are_valid_deterministic_and_never_costlier(prob):
     assert again.schedule == r.schedule and np.array_equal(again.cost, r.cost)
 
 
+@settings(max_examples=40, deadline=None)
+@given(problems().filter(lambda p: len(p[3]) <= 6 and len(p[0]) <= 4))
+def test_short_lists_get_the_iterated_search_valid_and_never_costlier(prob):
+    # the default budget: a short list's iterated local search, groups other than the first to
+    # reach included
+    ids, cost, loc, objs, bases, periods = prob
+    paper = coordinate(ids, cost, loc, objs, periods)
+    r = improve(ids, cost, loc, objs, bases, periods)
+    need = {o.id: o.required for o in objs}
+    assert sorted(a.object for a in r.schedule) == sorted(need)
+    assert all(len(set(a.agents)) == need[a.object] and set(a.agents) <= set(ids) for a in r.schedule)
+    assert home_cost(r, bases, periods) <= home_cost(paper, bases, periods)
+    # the schedule is what executing it gives: each object starts once its group is there
+    problem = _Problem(ids, cost, loc, objs, bases, periods)
+    ca, xs, ys = problem.start_state()
+    for a in r.schedule:
+        k = problem.index[a.object]
+        group = tuple(ids.index(j) for j in a.agents)
+        assert problem.place(k, ca, xs, ys, group)[1:] == (a.start, a.finish)
+    assert np.array_equal(np.array(ca), r.cost)
+
+
+_SAME_EVERYWHERE = """
+from ost_ros.model import Grid
+from ost_ros.optimal import post_search_problem
+from ost_ros.planner import improve
+from ost_ros.scenario import generate_scenario
+last = []
+for seed, n, m, periods in ((3, 4, 7, None), (5, 6, 12, [1, 2, 1, 3, 1, 2]), (7, 10, 40, None)):
+    ids, ca, where, homes, objs = post_search_problem(generate_scenario(n, m, seed, Grid(80, 30), nmax=3))
+    hint = [o.id for o in objs][::-2]
+    r = improve(ids, ca, where, objs, homes, periods, hint=hint)
+    print([(a.object, a.agents, a.start, a.finish) for a in r.schedule], r.cost.tolist())
+    last.append((max(a.finish for a in r.schedule), int(r.cost.sum())))
+print(last)
+"""
+
+
+PINNED = [(517, 1942), (746, 3957), (558, 5249)]
+
+
+def test_the_schedule_is_the_same_in_every_process():
+    # the search's random draws and its ties owe nothing to hash seeds, dict or set order, or the
+    # machine: two processes with different hash seeds print the same schedules (the short
+    # list's iterated search, a long list's threshold accepting, unequal speeds, a hint), and
+    # their last deliveries and summed free times are the ones computed when this was written
+    out = []
+    for hash_seed in ("0", "4242"):
+        env = dict(os.environ, PYTHONHASHSEED=hash_seed)
+        got = subprocess.run(
+            [sys.executable, "-c", _SAME_EVERYWHERE], env=env, capture_output=True, text=True, check=True
+        )
+        out.append(got.stdout)
+    assert out[0] == out[1] and out[0].count("\n") == 4
+    assert out[0].splitlines()[-1] == str(PINNED)
+
+
 def test_the_budget_is_an_operation_count():
-    assert budget_for(7, 4) == 80 * 49
+    assert budget_for(7, 4) == 640 * 49
     assert budget_for(200, 50) == 3000 and budget_for(200, 10) == 15_000  # at most MAX_WORK reaches
     with pytest.raises(ValueError, match="planner must be one of paper, improved"):
         check_planner("fast")
 
 
-def test_small_problems_are_within_five_percent_of_the_optimum():
+def test_small_problems_are_within_half_a_percent_of_the_optimum():
     # the issue's 12 problems: ost generate --agents 4 --objects 7 --seed 1..12 --width 60
     # --height 24 --nmax 3, then ost optimal
     paper, better = [], []
@@ -86,7 +147,7 @@ def test_small_problems_are_within_five_percent_of_the_optimum():
         assert r.proven and r.cost <= r.improved_cost <= r.ccp_cost
         paper.append(r.gap)
         better.append(r.improved_gap)
-    assert statistics.mean(better) <= 0.05 < statistics.mean(paper)
+    assert statistics.mean(better) <= 0.005 and statistics.mean(paper) > 0.05
 
 
 def test_improved_beats_the_paper_on_the_demo_scenario():
