@@ -23,7 +23,7 @@ Pure and deterministic; readings in docs/interpretation.md ("The improved planne
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -151,6 +151,25 @@ class _Problem:
 Groups = dict[int, tuple[int, ...]]  # object index -> its group, where not the n_i first to reach it
 
 
+def _exchanged(
+    groups: Groups, k: int, ranked: list[int], need: int, out: int, pick: Callable[[int], int]
+) -> Groups:
+    """``groups`` with object k's group (default: the ``need`` first of ``ranked``) given member
+    number ``out`` exchanged for one of the three agents not in it that reach k first (the
+    ``pick(count)``-th)."""
+    first = tuple(sorted(ranked[:need]))
+    group = groups.get(k, first)
+    leaving = group[out]
+    others = [a for a in ranked if a not in group][:3]
+    chosen = tuple(sorted([a for a in group if a != leaving] + [others[pick(len(others))]]))
+    new = dict(groups)
+    if chosen == first:
+        new.pop(k, None)
+    else:
+        new[k] = chosen
+    return new
+
+
 def decode(
     problem: _Problem, order: Sequence[int], groups: Groups | None = None
 ) -> tuple[list[Assignment], Cost]:
@@ -246,17 +265,7 @@ class _Search:
             if need < self.p.n:
                 ranked = self.p.ranked(k, *self.states[p])
                 self.spent += 1
-                first = tuple(sorted(ranked[:need]))
-                group = groups.get(k, first)
-                out = group[rng.below(need)]
-                others = [j for j in ranked if j not in group][:3]
-                chosen = tuple(sorted([j for j in group if j != out] + [others[rng.below(len(others))]]))
-                groups = dict(groups)
-                if chosen == first:
-                    groups.pop(k, None)
-                else:
-                    groups[k] = chosen
-                return order, groups, p, p
+                return order, _exchanged(groups, k, ranked, need, rng.below(need), rng.below), p, p
         i = rng.below(m)
         if kind & 1 and m > 2 * NEAR + 1:
             j = min(max(i + rng.below(2 * NEAR + 1) - NEAR, 0), m - 1)
@@ -312,17 +321,7 @@ class _Search:
         need = self.p.spec[k][5]
         ranked = self.p.ranked(k, *self.states[i])
         self.spent += 1
-        first = tuple(sorted(ranked[:need]))
-        group = groups.get(k, first)
-        out = group[j]
-        others = [a for a in ranked if a not in group][:3]
-        chosen = tuple(sorted([a for a in group if a != out] + [others[b]]))
-        groups = dict(groups)
-        if chosen == first:
-            groups.pop(k, None)
-        else:
-            groups[k] = chosen
-        return order, groups, i, i
+        return order, _exchanged(groups, k, ranked, need, j, lambda _: b), i, i
 
     def iterated(self, rng: _Rng, kicks: int, slack: int) -> tuple[list[int], Groups]:
         """Iterated local search while the budget lasts: descend (first improvement over every
