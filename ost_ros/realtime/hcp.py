@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 from ost_ros.messages import AgentLost, AgentMessage
@@ -34,7 +34,7 @@ from ost_ros.protocols.hcp.agent import HcpAgent, HcpState
 from ost_ros.protocols.hcp.comm import HcpComm, HelpGroup
 from ost_ros.protocols.hcp.messages import HelpOffer, HelpRelease, HelpRequest
 from ost_ros.realtime.agent import EPS, RealtimeAgent, _digest
-from ost_ros.realtime.messages import SEARCHING_STATE, Digest, ObjectInfo
+from ost_ros.realtime.messages import Digest, ObjectInfo
 from ost_ros.realtime.world import ABORTED, REFUSED, Carry, Detection, Feedback, GoalResult
 from ost_ros.search import SearchModule, route
 
@@ -103,8 +103,8 @@ class RtHcpAgent(HcpAgent):
         """(Its runtime says what it has read: the batches taken, not the step.)"""
 
     def report_late(self, t: int, sensed: Sequence[ObjectInfo]) -> list[AgentMessage]:
-        """Its own objects its base sensed at step ``t`` while it swept (heard of late: it may
-        be doing something else by now): claimed now — HCP's finds are private, nothing to say."""
+        """Its own objects its base sensed at step ``t`` (heard of late: it may be doing
+        something else by now): claimed now — HCP's finds are private, nothing to say."""
         for o in sensed:
             if self.news(o):
                 self._claim(self.comm.fallen.get(o.id, o), t)
@@ -171,7 +171,6 @@ class RtHcpAgent(HcpAgent):
 
 
 _NOT_THERE = ("DELIVERED", "IN_TRANSIT", "NOT_AT_OBJECT")
-_LABELS = 16  # goals remembered (a detection is never older than a few of them)
 
 
 @dataclass(frozen=True)
@@ -187,8 +186,6 @@ class RtHcpRuntime(RealtimeAgent):
     """The realtime runtime of an HCP robot (the module docstring)."""
 
     agent: RtHcpAgent  # type: ignore[assignment]
-    # (time, state) of its last goals sent: what its base was doing when it sensed something
-    _labels: list[tuple[float, str]] = field(default_factory=list)
 
     def destination(self, obj: int) -> Cell:
         return self.comm.objects[obj].destination
@@ -222,33 +219,21 @@ class RtHcpRuntime(RealtimeAgent):
         return out + self._flush(now)
 
     def on_detection(self, det: Detection, now: float) -> list:
-        """What its base sensed while it swept is its own to claim. Heard of at once (in
+        """What its base sensed in its own area is its own to claim. Heard of at once (in
         process), it senses as the lockstep agent does: only while its body sweeps (a body that
         has just become a helper resumes its sweep from here, and senses it again). Heard of late
-        (a network between them), it is claimed if its base was on a sweep then, whatever the
-        body does now: the body has moved its sweep past it and would never sense it again."""
+        (a network between them), it is claimed whatever the body does now: the body may have
+        moved its sweep past it, and would never sense it again."""
         a = self.agent
         if self.out or not any(a.news(o) for o in det.objects):
             return self._flush(now)
         if not self.remote_base and det.time >= now - EPS:
             if a.state is HcpState.SEARCHING:
                 self._decide_at(det.time, now)
-        elif self._swept_at(det.time):
+        else:
             a.report_late(math.ceil(det.time - EPS), det.sensed)
             self._decide_at(math.floor(now + EPS) + 1, now)  # (as after a batch that changed it)
         return self._flush(now)
-
-    def _goal(self, goal, fb: Feedback, sweep=None, force: bool = False) -> None:
-        sent = self.goal_id
-        super()._goal(goal, fb, sweep, force)
-        if self.goal_id != sent:  # what its base does from then on: sweeping or not
-            self._labels = (self._labels + [(fb.time, goal.state)])[-_LABELS:]
-
-    def _swept_at(self, t: float) -> bool:
-        """Whether the goal its base was on at time ``t`` was a sweep (its last goal sent by
-        then; before any, it sweeps)."""
-        label = next((lab for at, lab in reversed(self._labels) if at <= t + EPS), SEARCHING_STATE)
-        return label == SEARCHING_STATE
 
     def _sync(self, fb: Feedback, s: int) -> None:
         super()._sync(fb, s)
