@@ -398,14 +398,12 @@ class RunConfig:
         try:
             spec = protocols.check(self["protocol"], scenario=scenario, policy=self.policy(), silence=silence)
             if self["realtime"]:
-                from ost_ros.realtime.run import check_realtime
+                from ost_ros.realtime.run import check_realtime, refused
 
                 check_realtime(self["protocol"], self.policy(), self.protocol_settings())
-                if self["protocol"] == "hcp":  # (docs/realtime.md, "HCP without a barrier")
-                    raise protocols.ProtocolError(
-                        "hcp runs without a barrier in process only (ost sim --latency): over DDS a "
-                        "team of 10 still stalls now and then, one object never claimed"
-                    )
+                why = refused(self["protocol"], "dds")  # (docs/realtime.md, "HCP without a barrier")
+                if why:
+                    raise protocols.ProtocolError(why)
             return spec
         except protocols.ProtocolError as exc:
             raise ConfigError("protocol", str(exc)) from None

@@ -48,6 +48,8 @@ REFUSED: dict[str, dict[str, str]] = {
     "hcp": {
         "join": "hcp takes no robot into the team after the start (--join): its owners and "
         "heirs are fixed by the subareas of the robots there at the start",
+        "dds": "hcp runs without a barrier in process only (ost sim --latency): over DDS a team of "
+        "10 still stalls now and then, one object never claimed",
     },
 }
 
