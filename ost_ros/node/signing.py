@@ -10,6 +10,9 @@ from collections import Counter
 from collections.abc import Iterable
 from typing import Any
 
+import rclpy
+from rclpy._rclpy_pybind11 import RCLError
+
 from ost_msgs_py import auth, wire
 from ost_ros.node.params import ParameterError
 
@@ -55,13 +58,13 @@ class NodeAuth:
     ) -> bytes:
         """Encode, seal and publish ``value`` (:meth:`encode`); the bytes published."""
         data = self.encode(pub, value, run, receivers)
-        pub.publish(data)
+        _publish(pub, data)
         return data
 
     def relay(self, pub: Any, data: bytes) -> None:
         """Publish a message exactly as it was received (a peer's, sealed by the peer): every
         receiver's tag is still in it."""
-        pub.publish(data)
+        _publish(pub, data)
 
     def drop(self, reason: str) -> None:
         """Count a dropped message (its reason: the text before the first colon)."""
@@ -70,6 +73,16 @@ class NodeAuth:
     def counts(self) -> dict[str, int]:
         """Messages dropped by this node: unsigned, forged, replayed, malformed, stale."""
         return {r: self.dropped.get(r, 0) for r in auth.REASONS}
+
+
+def _publish(pub: Any, data: bytes) -> None:
+    """Publish ``data``; nothing once the process is shutting down (a signal ends the context
+    from rclpy's own thread, and a callback under way would fail to publish: not a fault)."""
+    try:
+        pub.publish(data)
+    except RCLError:
+        if rclpy.ok():
+            raise
 
 
 def node_auth(keys: str, insecure: bool, signer: int) -> NodeAuth:

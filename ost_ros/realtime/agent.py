@@ -140,8 +140,6 @@ class RtScheduleAgent(ScheduleAgent):
     def report_late(self, t: int, sensed: Sequence[ObjectInfo]) -> list:
         """Finds its base sensed at step ``t`` that it hears of only now (a network between the
         robot and its base): reported as sensed then, without acting (it has moved on)."""
-        if self.state is not GlobalState.SEARCHING:
-            return []
         out = []
         for o in sensed:
             if self.news(o):
@@ -339,6 +337,10 @@ class RealtimeAgent:
     def on_result(self, res: GoalResult, now: float) -> list[Output]:
         if res.goal != self.goal_id or self.out:
             return self._flush(now)  # an older goal's (preempted) result
+        if self.remote_base and res.time <= self._decided + EPS:
+            # a decision at or after its time was taken without it (its base's events cross a
+            # network, and one that came first made its picture look whole): that one again
+            self._decided = -1.0
         if res.outcome == REACHED:
             if self._sweep is not None and isinstance(self.goal, Follow):
                 self.agent.search.index = self._sweep[1] + len(self.goal.path) - 1
@@ -355,10 +357,13 @@ class RealtimeAgent:
                     self._decide_at(now, now)
                 else:
                     self._blocked = task.object  # until the comm hears of the failure
-            elif res.code in ("START", "PREEMPTED", "DELIVERED"):
+            elif res.code in ("START", "PREEMPTED", "DELIVERED") or (
+                res.code == "NOT_AT_OBJECT" and self.remote_base
+            ):
                 # planned from a stale feedback (over DDS an answer from mid-carry can come after
-                # the carry's result: the object is delivered), or another client took its base
-                # over (an operator's goal): look again, decide again
+                # the carry's result: the object is delivered; a hold comes after its base moved
+                # on past the object), or another client took its base over (an operator's
+                # goal): look again, decide again
                 self._decided = -1.0
                 self._decide_at(now, now)
             elif res.code == "FAILED":
@@ -371,15 +376,17 @@ class RealtimeAgent:
         a = self.agent
         if self.out:
             return self._flush(now)
-        if a.state is GlobalState.SEARCHING and any(a.news(o) for o in det.objects):
-            if self.remote_base or det.time < now - EPS:
-                # Its base is across a network (a node: the robot moves on while it hears of the
-                # detection and asks where it is), or this one came late: what it sensed there is
-                # reported as of then, not looked for again (a sweeping robot only reports).
-                for m in a.report_late(math.ceil(det.time - EPS), det.sensed):
-                    self._send(m, det.time)
-            else:
-                self._decide_at(det.time, now)
+        if not any(a.news(o) for o in det.objects):
+            return self._flush(now)
+        if self.remote_base or det.time < now - EPS:
+            # Its base is across a network (a node: the robot moves on while it hears of the
+            # detection and asks where it is), or this one came late: what it sensed there is
+            # reported as of then, not looked for again — whatever the body does by now (it may
+            # have moved its sweep past the cell on its picture before the base got there).
+            for m in a.report_late(math.ceil(det.time - EPS), det.sensed):
+                self._send(m, det.time)
+        elif a.state is GlobalState.SEARCHING:  # (heard of at once: as the lockstep robot senses)
+            self._decide_at(det.time, now)
         return self._flush(now)
 
     def on_carry(self, ev: CarryStarted, now: float) -> list[Output]:
@@ -498,6 +505,17 @@ class RealtimeAgent:
             return
         if not self._frozen(task):
             self._goal(Stand(state), fb)  # a re-plan may still move it: wait for the comm
+            return
+        g = self.goal
+        if (
+            self.remote_base
+            and isinstance(g, Follow)
+            and fb.goal == self.goal_id
+            and 0 <= fb.index < len(g.path) - 1
+        ):
+            # its base runs on past this cell, and a hold crossing the network would come after
+            # it left: stop it first (where it stops, its base says; then it holds, or walks back)
+            self._goal(Stand(state), fb, force=True)
             return
         self._goal(Carry(task.object, tuple(task.agents), state), fb)
 

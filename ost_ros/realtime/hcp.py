@@ -24,13 +24,13 @@ decision at each goal's end, each detection and each batch.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, ClassVar
 
 from ost_ros.messages import AgentLost, AgentMessage
 from ost_ros.model import Cell
-from ost_ros.protocols.hcp.agent import HcpAgent, HcpState
+from ost_ros.protocols.hcp.agent import WAIT, Action3, HcpAgent, HcpState
 from ost_ros.protocols.hcp.comm import HcpComm, HelpGroup
 from ost_ros.protocols.hcp.messages import HelpOffer, HelpRelease, HelpRequest
 from ost_ros.realtime.agent import EPS, RealtimeAgent, _digest
@@ -97,7 +97,15 @@ class RtHcpAgent(HcpAgent):
         self.reroute = False  # an inherited sweep to route from where it is at its next decision
         self._read_at: Cell = self.position
         self.moved_on = 0  # inherited sweeps routed from a cell other than where it read the notice
+        self.walked_back = 0  # holds that came after its base had moved past the object
         self.view = -1  # no batch read yet
+        # Its base's events are in up to here (its runtime says, when they cross a network): it
+        # says its part is done only once they are, each find on the way claimed first
+        self.sensed_until = math.inf
+        self.part_wait: int | None = None  # the step its "part done" waits for them
+        # The object its base last lifted, as its runtime knows (its base across a network: a
+        # hold may come too late, and where the base went says nothing of a carry); None: unused
+        self.lifted: int | None = None
 
     def _read_up_to(self, t: int) -> None:
         """(Its runtime says what it has read: the batches taken, not the step.)"""
@@ -130,6 +138,49 @@ class RtHcpAgent(HcpAgent):
             self.comm.warnings.append(f"agent {self.id}: object {obj} let go, {why}")
         self.current, self.helping = None, False
         self.state = HcpState.DECISION
+
+    def _deciding(self) -> Action3 | None:
+        if (
+            self.sweep_done
+            and not self.part_done_sent
+            and self.offering is None
+            and not self.own
+            and (self.t if self.part_wait is None else self.part_wait) > self.sensed_until
+        ):
+            if self.part_wait is None:  # a find on the way may still come: not done yet
+                self.part_wait = self.t
+            return WAIT
+        self.part_wait = None
+        return super()._deciding()
+
+    def _carrying(self) -> Action3 | None:
+        obj = self.current
+        if (
+            self.lifted is not None
+            and obj is not None
+            and self.lifted != obj.id
+            and self.position != obj.location
+        ):
+            # its base moved on without it (a hold came after its base had left, as over a
+            # network): nothing is carried — back to it (not "delivered on arrival")
+            self.state = HcpState.HELPING
+            self.walked_back += 1
+            return None
+        return super()._carrying()
+
+    _STEP: ClassVar[dict[HcpState, Callable[[HcpAgent], Action3 | None]]] = {
+        **HcpAgent._STEP,
+        HcpState.DECISION: _deciding,  # type: ignore[dict-item]
+        HcpState.WAITING: _carrying,  # type: ignore[dict-item]
+        HcpState.MOVING: _carrying,  # type: ignore[dict-item]
+    }
+
+    def walk_back(self, obj: int) -> None:
+        """Its hold of ``obj`` came after its base had moved on past the object (as its goal
+        crosses a network): back to the object, then hold it (the walk of a helper arriving)."""
+        if self.current is not None and self.current.id == obj and self.state in _GROUP_HOLD:
+            self.state = HcpState.HELPING
+            self.walked_back += 1
 
     def _inherit(self, lost: AgentLost, parts: tuple[int, ...], t: int) -> None:
         """As the lockstep agent's, but a robot whose sweep was done routes the inherited one
@@ -171,6 +222,7 @@ class RtHcpAgent(HcpAgent):
 
 
 _NOT_THERE = ("DELIVERED", "IN_TRANSIT", "NOT_AT_OBJECT")
+_GROUP_HOLD = frozenset((HcpState.WAITING, HcpState.MOVING))  # what a hold or carry is sent in
 
 
 @dataclass(frozen=True)
@@ -201,16 +253,26 @@ class RtHcpRuntime(RealtimeAgent):
     def on_result(self, res: GoalResult, now: float) -> list:
         """As every robot's, but a hold or carry refused because the object is not there to lift
         (delivered, carried by others, lying elsewhere) lets the object go: nobody's schedule will
-        tell an HCP robot otherwise, and deciding again would ask for the same lift."""
+        tell an HCP robot otherwise, and deciding again would ask for the same lift. (Refused
+        because its base was not where the object lies — its goal came after the base had moved
+        on, as over a network — it decides again, and walks back.)"""
         g = self.goal
+        cur = self.agent.current
         gone = (
             res.goal == self.goal_id
             and isinstance(g, Carry)
             and res.outcome in (ABORTED, REFUSED)
             and res.code in _NOT_THERE
+            and not (res.code == "NOT_AT_OBJECT" and cur is not None and res.cell != cur.location)
         )
         if gone and isinstance(g, Carry):
             self.agent.let_go(g.object, f"{res.code.lower()} at {res.time:g}: {res.reason}")
+        elif res.goal == self.goal_id and isinstance(g, Carry) and res.code == "NOT_AT_OBJECT":
+            self.agent.walk_back(g.object)  # (not a fault: counted, no warning)
+            self.goal, self._sweep, self._carry_started = None, None, -1
+            self._decided = -1.0
+            self._decide_at(now, now)
+            return self._flush(now)
         out = super().on_result(res, now)
         if not gone or self.out:
             return out
@@ -235,8 +297,22 @@ class RtHcpRuntime(RealtimeAgent):
             self._decide_at(math.floor(now + EPS) + 1, now)  # (as after a batch that changed it)
         return self._flush(now)
 
+    def base_known(self, t: float) -> None:
+        super().base_known(t)
+        if not self.remote_base:
+            return
+        a = self.agent
+        a.sensed_until = t
+        if a.part_wait is not None and t >= a.part_wait:
+            self._dues.add(t)  # its part may be done now: decide (its caller's clock comes)
+
+    def held(self, now: float) -> bool:
+        return super().held(now) or self.agent.part_wait is not None
+
     def _sync(self, fb: Feedback, s: int) -> None:
         super()._sync(fb, s)
+        if self.remote_base:
+            self.agent.lifted = fb.carrying if fb.carrying >= 0 else self._carry_started
         self.agent.resume_at(fb.cell)
         self.agent.view = self.batches.done  # what its decisions are taken on
 

@@ -48,8 +48,6 @@ REFUSED: dict[str, dict[str, str]] = {
     "hcp": {
         "join": "hcp takes no robot into the team after the start (--join): its owners and "
         "heirs are fixed by the subareas of the robots there at the start",
-        "dds": "hcp runs without a barrier in process only (ost sim --latency): over DDS a team of "
-        "10 still stalls now and then, one object never claimed",
     },
 }
 
@@ -223,6 +221,12 @@ class _Run:
     sent: dict[int, list[Envelope]] = field(default_factory=dict)  # agent -> its messages, as sent
     _world_times: set[float] = field(default_factory=set)
     observer: Observer | None = None  # watches the run (reads only)
+    # Bases across a network (as an agent node's): goals reach the world and base events reach
+    # their robot this late, each in order; a robot decides on its own picture (its mirror).
+    remote: Network | None = None
+    _due: dict[tuple[str, int], float] = field(default_factory=dict)  # (way, agent) -> last arrival
+    _in_flight: dict[int, list[float]] = field(default_factory=dict)  # agent -> its events' times
+    _asking: dict[int, float] = field(default_factory=dict)  # agent -> a decision waiting (its at)
 
     def team_at(self, now: float) -> tuple[dict[int, str], Split | None]:
         """Who is in the team at ``now`` as an observer sees it — per robot IN, SILENT (its
@@ -244,9 +248,17 @@ class _Run:
         split = next((sp for sp in self.net.splits if sp.start <= now < sp.start + sp.steps), None)
         return team, split
 
-    def base_event(self, ev: Any) -> None:
+    def base_event(self, ev: Any, now: float) -> None:
         """A base's event for the robots' pictures (a tracking world's GoalStarted and Stalled go
-        only there)."""
+        only there); with bases across a network, on its way to its robots (:meth:`base_in`)."""
+        if self.remote is not None:
+            there: tuple[ObjectInfo, ...] = ()  # (with a result: what it senses where it stands)
+            if isinstance(ev, GoalResult) and ev.outcome in ("reached", "aborted"):
+                there = self.world.feedback(ev.agent, ev.time).sensed
+            for j in ev.group if isinstance(ev, CarryStarted) else (ev.agent,):
+                self._in_flight.setdefault(j, []).append(now)
+                self.queue.push(self._arrival("base", j, now), KILL, ("base_arrives", j, ev, there))
+            return
         if not self.mirrors:
             return
         if isinstance(ev, CarryStarted):
@@ -282,6 +294,8 @@ class _Run:
                 self.publish(agent, o.payload, now)
             elif isinstance(o, SendGoal):
                 self.send_goal(agent, o, now)
+            elif isinstance(o, AskFeedback) and self.remote is not None:
+                self.ask(agent, o.at, now)
             elif isinstance(o, AskFeedback):
                 fb = self.world.feedback(agent, o.at)
                 if not ra.out:
@@ -291,10 +305,12 @@ class _Run:
                 self.queue.push(max(o.time, now), WAKE, ("wake", agent))
             elif isinstance(o, Digest):
                 self.digests.append(o)
-        if self.base_lag and agent in self.live and ra.held(now) and self._ticks.get(agent, -1.0) <= now:
+        # (with bases across a network, their clock comes at least once a step)
+        lag = self.base_lag or (max(self.remote.latency.steps, 1.0) if self.remote is not None else 0.0)
+        if lag and agent in self.live and ra.held(now) and self._ticks.get(agent, -1.0) <= now:
             # its base's clock tells it more base_lag later (an agent node's base clock)
-            self._ticks[agent] = now + self.base_lag
-            self.queue.push(now + self.base_lag, WAKE, ("wake", agent))
+            self._ticks[agent] = now + lag
+            self.queue.push(now + lag, WAKE, ("wake", agent))
         self.schedule_world()
 
     def publish(self, agent: int, p: Any, now: float) -> None:
@@ -311,10 +327,88 @@ class _Run:
     def send_goal(self, agent: int, o: SendGoal, now: float) -> None:
         if agent in self.mirrors:
             self.mirrors[agent].sent(o.id, o.goal)
-        for r in self.world.goal(agent, o.id, o.goal, o.at, self.agents[agent].incarnation):
-            self.base_event(r)
+        life = self.agents[agent].incarnation
+        if self.remote is not None:
+            self.queue.push(self._arrival("goal", agent, now), KILL, ("goal_arrives", agent, o, life))
+            return
+        for r in self.world.goal(agent, o.id, o.goal, o.at, life):
+            self.base_event(r, now)
             if isinstance(r, GoalResult):
                 self.dispatch(r.agent, self.agents[r.agent].on_result(r, now), now)
+
+    # ------------------------------------------------------------------ bases across a network
+
+    def across_a_network(self, delay: Latency | None, seed: int) -> None:
+        """Every robot's base across a network, ``delay`` away (its own draws: the messages'
+        stay as they were); None: each its own hardware."""
+        if delay is None:
+            return
+        self.remote = Network(self.queue, delay, seed + 7919)
+        for ra in self.agents.values():
+            ra.remote_base = True
+
+    def _arrival(self, way: str, agent: int, now: float) -> float:
+        """When something sent now on ``way`` (goals to the world, events to a robot) arrives:
+        its own delay, after everything sent before it on the same way (one reliable topic)."""
+        assert self.remote is not None
+        at = max(self._due.get((way, agent), 0.0), now + self.remote.delay())
+        self._due[(way, agent)] = at
+        return at
+
+    def goal_arrives(self, agent: int, o: SendGoal, life: int, now: float) -> None:
+        """A robot's goal reaches the world: it takes over from now at the earliest (as the world
+        node starts a late goal)."""
+        for r in self.world.goal(agent, o.id, o.goal, max(o.at, now), life):
+            self.base_event(r, now)
+        self.schedule_world()
+
+    def base_arrives(self, agent: int, ev: Any, sensed: tuple[ObjectInfo, ...], now: float) -> None:
+        self._in_flight[agent].pop(0)
+        self.call(agent, "base_in", (ev, sensed), now)
+
+    def base_in(self, agent: int, ev: Any, sensed: tuple[ObjectInfo, ...], now: float) -> None:
+        """One of its base's events reaches a robot, as an agent node takes it: its picture
+        first, then the runtime's callback, then what it may commit, then the decision that
+        waited for its picture (:meth:`ask`)."""
+        ra = self.agents[agent]
+        if not isinstance(ev, Detection):
+            self.mirrors[agent].take(ev, sensed)
+        if isinstance(ev, Detection):
+            out = ra.on_detection(ev, now)
+        elif isinstance(ev, CarryStarted):
+            out = ra.on_carry(ev, now)
+        elif isinstance(ev, GoalResult):
+            out = ra.on_result(ev, now)
+        else:
+            out = []
+        self.dispatch(agent, out, now)
+        ra.base_known(self._known(agent, now))
+        if agent in self._asking:
+            self.ask(agent, self._asking.pop(agent), now)
+        if ra.held(now) or any(d <= now for d in ra._dues):
+            self.dispatch(agent, ra.on_clock(now), now)
+
+    def _known(self, agent: int, now: float) -> float:
+        """How far a robot has its base's events: up to the first still on its way (its base's
+        clock says as much over DDS), and no further than that clock has come."""
+        assert self.remote is not None
+        known = now - self.remote.latency.steps
+        due = self.world.next_time()
+        if due is not None and due <= now:  # the world has not moved its bases on to now yet
+            known = min(known, due - 1e-6)
+        flying = self._in_flight.get(agent)
+        return min(known, flying[0] - 1e-6) if flying else known
+
+    def ask(self, agent: int, at: float, now: float) -> None:
+        """A decision asks where its base is: its picture answers, once it holds then (as an
+        agent node's ``decide``)."""
+        ra = self.agents[agent]
+        t = max(at, now)
+        m = self.mirrors[agent]
+        if not m.settled(t) and not ra.out:
+            self._asking[agent] = at
+            return
+        self.dispatch(agent, ra.on_feedback(m.feedback(t), now), now)
 
     def schedule_world(self) -> None:
         t = self.world.next_time()
@@ -325,7 +419,9 @@ class _Run:
     def world_events(self, now: float) -> None:
         self._world_times.discard(now)
         for ev in self.world.advance(now):
-            self.base_event(ev)
+            self.base_event(ev, now)
+            if self.remote is not None:
+                continue
             if isinstance(ev, GoalResult):
                 self.call(ev.agent, "on_result", ev, now)
             elif isinstance(ev, Detection):
@@ -368,8 +464,19 @@ class _Run:
             self.held.setdefault(agent, []).append((method, arg))
             return
         ra = self.agents[agent]
-        if self.base_lag:
+        if method == "start" and self.remote is not None:
+            # what its base senses where it stands (the world node's first event), on its way
+            fb = self.world.feedback(agent, now)
+            if fb.sensed:
+                self.base_event(Detection(agent, now, fb.cell, fb.sensed, fb.sensed), now)
+        if self.remote is not None:
+            ra.base_known(self._known(agent, now))
+        elif self.base_lag:
             ra.base_known(now - self.base_lag)
+        if method == "base_in":
+            ev, sensed = arg
+            self.base_in(agent, ev, sensed, now)
+            return
         if method == "again":
             self.resend(agent, now)
             out = ra.again(now)
@@ -594,6 +701,7 @@ def run_realtime(
     failure_timeout: float = 10.0,
     splits: Sequence[Split] = (),
     observe: Observer | None = None,
+    base_delay: Latency | None = None,
 ) -> tuple[RunResult, RealtimeReport]:
     """One run without a barrier, in process; the result (as ``ost sim`` builds it) and what the
     realtime run adds (agreement, lags, network figures). ``failures``: agent -> the time it
@@ -606,8 +714,12 @@ def run_realtime(
     ``failure_timeout`` steps; it comes back when it runs again); ``joins``: agent -> the step it
     joins at (out from the start, until then); ``splits``: partitions, whose copies between
     groups are held until they heal; ``observe``: watches the run as it goes (the animation's
-    frames; it changes nothing)."""
+    frames; it changes nothing); ``base_delay``: every robot's base is across a network, as an
+    agent node's — its goals reach the world and its base's events reach it this late (each way
+    in order), and it decides on its own picture of its base (``mirrors``), committing only as
+    far as its base's events are in."""
     policy = policy or CoordinationPolicy()
+    mirrors = mirrors or base_delay is not None
     latency = latency or Latency()
     failures = dict(failures or {})
     _check_options(protocol, join=bool(joins))
@@ -639,6 +751,7 @@ def run_realtime(
                 raise ValueError(f"split: no agents {sorted(g - set(run.agents))}")
     limit = max_steps if max_steps is not None else 2 * bound + slack + sum(s[2] for s in stalls) + away
     run.base_lag, run.declare_after, run.observer = base_lag, declare_after, observe
+    run.across_a_network(base_delay, seed)
     if failure_timeout <= 0:
         raise ValueError(f"failure timeout {failure_timeout}: must be > 0")
     if monitor:

@@ -38,7 +38,7 @@ def _scenario(tmp_path, agents=4, objects=6, seed=1):
     return path
 
 
-@pytest.mark.parametrize("protocol", [*(p for p in REALTIME if p != "hcp"), "ccp-improved"])
+@pytest.mark.parametrize("protocol", [*REALTIME, "ccp-improved"])
 def test_a_realtime_run_keeps_the_protocols_promise(tmp_path, protocol):
     path = _scenario(tmp_path)
     how = (
@@ -60,10 +60,10 @@ def test_a_realtime_run_keeps_the_protocols_promise(tmp_path, protocol):
 
 @pytest.mark.parametrize(
     "how",
-    [("--protocol", "greedy"), ("--protocol", "ccp", "--planner", "improved")],
-    ids=["greedy", "improved"],
+    [("--protocol", "greedy"), ("--protocol", "ccp", "--planner", "improved"), ("--protocol", "hcp")],
+    ids=["greedy", "improved", "hcp"],
 )
-def test_greedy_and_the_improved_planner_deliver_everything_with_ten_robots(tmp_path, how):
+def test_greedy_hcp_and_the_improved_planner_deliver_everything_with_ten_robots(tmp_path, how):
     """Admitted without a barrier (docs/realtime.md, "What each protocol guarantees")."""
     path = tmp_path / "scenario.yaml"
     scenario = generate_scenario(10, 12, 4, Grid(60, 20), 3)
@@ -143,7 +143,7 @@ def _run_prepared(tmp_path, edit, extra=None, options=(), late=None):
 @pytest.mark.parametrize(
     ("args", "text"),
     [
-        (("--protocol", "hcp"), "hcp runs without a barrier in process only"),
+        (("--protocol", "hcp", "--join", "1:5"), "join: hcp takes no robot into the team"),
         (("--respawn-world", "1"), "--respawn-world: is for the lockstep run"),
     ],
 )
