@@ -89,7 +89,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         type=latency,
         metavar="L[:J]",
         help="run without a barrier: every message takes L steps plus up to J more (seeded, per "
-        "receiver); 0 gives ost sim's result (protocols: ccp with either planner, ncp, auction, greedy)",
+        "receiver); 0 gives ost sim's result (every protocol: ccp with either planner, ncp, auction, "
+        "greedy, hcp)",
+    )
+    g.add_argument(
+        "--base-delay",
+        type=latency,
+        default=None,
+        metavar="L[:J]",
+        help="every robot's base is across a network, as an agent node's: its goals and its base's "
+        "events take L steps plus up to J more (seeded, in order), and it decides on its own picture "
+        "of its base (needs --latency)",
     )
     g.add_argument("--latency-seed", type=int, default=None, metavar="S", help="seed of the delays (0)")
     g.add_argument(
@@ -155,6 +165,7 @@ def check(args: argparse.Namespace) -> None:
         for flag, given in (
             ("--latency-seed", args.latency_seed is not None),
             ("--speed-jitter", args.speed_jitter is not None),
+            ("--base-delay", args.base_delay is not None),
             ("--stall", bool(args.stall)),
             ("--silence", bool(args.silence)),
             ("--join", bool(args.join)),
@@ -253,6 +264,7 @@ def run(
         failure_timeout=args.failure_timeout or 10.0,
         splits=[Split(g, float(t), float(s), lost=args.split_mode == "lost") for g, t, s in args.split],
         observe=recorder,
+        base_delay=Latency(*args.base_delay) if args.base_delay is not None else None,
     )
     result.lower_bound = lower_bound(scenario).value
     if args.plot:
@@ -273,6 +285,9 @@ def run(
             f"disagreements {report.disagreements} in {report.coordinations} coordinations, "
             f"largest lag {max(lags, default=0):g} steps"
         )
+        if report.base_delay is not None:
+            d = report.to_dict()["base_delay"]
+            print(f"bases           across a network: goals and base events {d[0]}+0..{d[1]} steps late")
         if args.silence or joins:
             m = report.to_dict()["membership"]
             print(

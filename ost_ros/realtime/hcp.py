@@ -106,6 +106,7 @@ class RtHcpAgent(HcpAgent):
         # The object its base last lifted, as its runtime knows (its base across a network: a
         # hold may come too late, and where the base went says nothing of a carry); None: unused
         self.lifted: int | None = None
+        self.holding = -1  # the object its base holds or carries now (its runtime says)
 
     def _read_up_to(self, t: int) -> None:
         """(Its runtime says what it has read: the batches taken, not the step.)"""
@@ -168,8 +169,17 @@ class RtHcpAgent(HcpAgent):
             return None
         return super()._carrying()
 
+    def _fetching(self) -> Action3 | None:
+        cur = self.current
+        if cur is not None and cur.id in self.unsure and self.holding == cur.id:
+            # its base holds it (it held it for the dead requester): it lies here — what a
+            # picture of a hold says it senses is nothing (its base says that with a result)
+            self.unsure.discard(cur.id)
+        return super()._fetching()
+
     _STEP: ClassVar[dict[HcpState, Callable[[HcpAgent], Action3 | None]]] = {
         **HcpAgent._STEP,
+        HcpState.FETCHING: _fetching,  # type: ignore[dict-item]
         HcpState.DECISION: _deciding,  # type: ignore[dict-item]
         HcpState.WAITING: _carrying,  # type: ignore[dict-item]
         HcpState.MOVING: _carrying,  # type: ignore[dict-item]
@@ -311,6 +321,8 @@ class RtHcpRuntime(RealtimeAgent):
 
     def _sync(self, fb: Feedback, s: int) -> None:
         super()._sync(fb, s)
+        g = self.goal
+        self.agent.holding = g.object if isinstance(g, Carry) and fb.goal == self.goal_id else -1
         if self.remote_base:
             self.agent.lifted = fb.carrying if fb.carrying >= 0 else self._carry_started
         self.agent.resume_at(fb.cell)

@@ -117,6 +117,7 @@ class RealtimeReport:
     disagreements: int = 0  # batches whose coordination digests differ between agents
     coordinations: int = 0  # batches with a coordination, compared across agents
     lag: dict[int, float] = field(default_factory=dict)  # agent -> most a batch waited after its stamp
+    base_delay: Latency | None = None  # bases across a network this far (None: their own hardware)
     marks: int = 0
     needs: int = 0
     copies: int = 0  # copies the network delivered
@@ -144,6 +145,11 @@ class RealtimeReport:
             "latency_seed": self.seed,
             "speed_jitter": self.speed_jitter,
             "stalls": [list(s) for s in self.stalls],
+            **(
+                {"base_delay": [_n(self.base_delay.steps), _n(self.base_delay.jitter)]}
+                if self.base_delay is not None
+                else {}
+            ),
             "disagreements": self.disagreements,
             "coordinations_compared": self.coordinations,
             "lag": {str(a): _n(v) for a, v in sorted(self.lag.items())},
@@ -344,6 +350,7 @@ class _Run:
         if delay is None:
             return
         self.remote = Network(self.queue, delay, seed + 7919)
+        self.report.base_delay = delay
         for ra in self.agents.values():
             ra.remote_base = True
 

@@ -58,6 +58,11 @@ def test_the_improved_planner_and_greedy_run_without_a_barrier(scenario, args):
     assert r.returncode == 0, r.stderr
     d = json.loads(r.stdout)
     assert d["completed"] and d["disagreements"] == 0
+    # bases across a network, as agent nodes have them
+    r = ost("sim", scenario, *args, "--latency", "1:1", "--base-delay", "1:2", "--json")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert d["completed"] and d["disagreements"] == 0 and d["base_delay"] == [1, 2]
 
 
 @pytest.mark.parametrize(
@@ -67,6 +72,8 @@ def test_the_improved_planner_and_greedy_run_without_a_barrier(scenario, args):
         (("--latency", "-1"), "must be finite and ≥ 0"),
         (("--latency", "2:-1"), "must be finite and ≥ 0"),
         (("--stall", "1:2:3"), "--stall needs --latency"),
+        (("--base-delay", "1"), "--base-delay needs --latency"),
+        (("--latency", 1, "--base-delay", "1:x"), "expected L or L:J"),
         (("--latency", 1, "--stall", "1:2"), "expected AGENT:STEP:STEPS"),
         (("--latency", 1, "--stall", "9:2:3"), "no agent 9"),
         (("--latency", 1, "--speed-jitter", "-0.5"), "must be ≥ 0"),
