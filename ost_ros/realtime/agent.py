@@ -206,6 +206,10 @@ class RealtimeAgent:
     _blocked: int = -1  # object whose group lost a member: no CARRY for it until the comm knows
     _keep: int = 0  # own schedule entries done or under way when a failure was learnt
     _status_due: bool = False  # a failure was learnt: its status goes out at the next decision
+    # A carry sent whose lift its base may not have told of yet (its base across a network): the
+    # status waits for its base's events up to its time (``_status_wait``), then says
+    _unsure_carry: bool = False
+    _status_wait: float | None = None
     _commit_at: float | None = None  # a time to commit once the decision asked for is taken
     # CCP's improved planner: the batch a carry waits to be known (_frozen), open_entries cached
     _gate: int | None = None
@@ -249,11 +253,16 @@ class RealtimeAgent:
         clock says how many it has sent up to t, and all are in): it may commit up to t, and
         never further (in process the base is its own hardware: no limit)."""
         self.speaker.ceiling = t
+        if self._status_wait is not None and t >= self._status_wait - EPS:
+            self._decided = -1.0
+            self._dues.add(t)  # its status can say now (its caller's clock comes)
 
     def held(self, now: float) -> bool:
         """Whether its commitment is held back by its base's events (not all in up to ``now``)
         while someone waits for it, or a batch due waits for it: its caller calls
         :meth:`on_clock` again once more of them are in."""
+        if self._status_wait is not None and self._unsure_carry:
+            return True
         if self.speaker.ceiling >= math.floor(now + EPS):
             return False
         nxt = self.speaker.next_wanted()
@@ -349,8 +358,10 @@ class RealtimeAgent:
         elif res.outcome in (ABORTED, REFUSED):
             self.goal, self._sweep, self._carry_started = None, None, -1
             task = self._task()
-            if res.code == "MEMBER_FAILED" and task is not None:
-                if self._member_lost(task):
+            if res.code == "MEMBER_FAILED":
+                if task is None:
+                    pass  # it let go of it already (its comm heard of the failure first)
+                elif self._member_lost(task):
                     # its comm has heard of the failure already (the notice may be stamped well
                     # before the abort reached it): decide on what the comm now says
                     self._decided = -1.0
@@ -427,7 +438,7 @@ class RealtimeAgent:
         a = self.agent
         s = math.ceil(fb.time - EPS)
         self._sync(fb, s)
-        if self._status_due:
+        if self._status_due and self._sure_of_carry(fb.time, now):
             self._status(fb, s)
         plan = a.plan(s, fb.cell)
         searching = a.state.value == SEARCHING_STATE
@@ -635,26 +646,47 @@ class RealtimeAgent:
         a._seen_schedule = len(k.schedule)
         # (a carry whose group has lost a member is over, even if its base has not said so yet:
         # the notice may be stamped well before the abort reaches it)
-        going = (
-            isinstance(self.goal, Carry)
-            and self._carry_started == self.goal.object
-            and not (a.current is not None and self._member_lost(a.current))
-        )
-        if a.current is not None and not going:
-            a.current = None
-            a._taken -= 1  # taken up, not begun: it goes back into the pool
-            if a.state is not GlobalState.SEARCHING:
-                a.state = GlobalState.DECISION
-            if isinstance(self.goal, Carry) and not self.out:  # let go now: no lift without it
-                self.goal_id += 1
-                self.goal, self.label = Stand(GlobalState.DECISION.value), GlobalState.DECISION.value
-                self._out.append(SendGoal(self.goal_id, self.goal, now))
+        carry = isinstance(self.goal, Carry) and not (a.current is not None and self._member_lost(a.current))
+        going = carry and self._carry_started == self.goal.object  # type: ignore[union-attr]
+        # (its base across a network may have lifted and not said so yet: it says once it has)
+        self._unsure_carry = carry and not going and self.remote_base and a.current is not None
+        if a.current is not None and not going and not self._unsure_carry:
+            self._let_go(now)
         elif a.current is None and a.state in (GlobalState.RETURNING, GlobalState.FINISH):
             a.state = GlobalState.DECISION
         self._blocked = -1
         self._keep = a._taken
         self._status_due = True
         self._decide_at(math.floor(now + EPS) + 1, now)
+
+    def _let_go(self, now: float) -> None:
+        """What it has taken up and not begun goes back into the pool; a hold is let go now (no
+        lift without it)."""
+        a = self.agent
+        a.current = None
+        a._taken -= 1
+        if a.state is not GlobalState.SEARCHING:
+            a.state = GlobalState.DECISION
+        if isinstance(self.goal, Carry) and not self.out:
+            self.goal_id += 1
+            self.goal, self.label = Stand(GlobalState.DECISION.value), GlobalState.DECISION.value
+            self._out.append(SendGoal(self.goal_id, self.goal, now))
+
+    def _sure_of_carry(self, t: float, now: float) -> bool:
+        """Whether its status can say now if its carry is under way: its base's events are in up
+        to ``t`` (else it waits for them: :meth:`base_known`), the lift among them or not."""
+        if not self._unsure_carry:
+            return True
+        if self._status_wait is None:  # (the moment it first asked: its status is of then)
+            self._status_wait = t
+        if self.speaker.ceiling < self._status_wait - EPS:
+            return False
+        self._unsure_carry, self._status_wait = False, None
+        task = self._task()
+        if task is not None and self._carry_started != task.object:  # (lifted: its result may be in)
+            self._let_go(now)
+            self._keep = self.agent._taken  # (what it keeps: without it)
+        return True
 
     def _status(self, fb: Feedback, s: int) -> None:
         """Where and when it is free of what it keeps doing, and what of the schedule it keeps."""
@@ -759,6 +791,7 @@ class RealtimeAgent:
         a.state = GlobalState.DECISION
         a.reported &= set(k.objects)  # what it said while out counted for nobody: news again
         self._status_due, self._keep = False, 0
+        self._unsure_carry, self._status_wait = False, None
         self.goal, self._sweep = None, None
         self._revive = True  # its base was stopped: its next goal, even to stand, takes it back
         self._decided = -1.0

@@ -494,6 +494,8 @@ class _Run:
         else:
             out = getattr(ra, method)(arg, now)
         self.dispatch(agent, out, now)
+        if self.remote is not None and method != "on_clock" and any(d <= now + 1e-9 for d in ra._dues):
+            self.dispatch(agent, ra.on_clock(now), now)  # (its base's clock came: a node fires)
 
     def loop(self, limit: float) -> tuple[str | None, float, float | None]:
         """Events in time order until the world is done at the end of a moment (as the lockstep

@@ -328,15 +328,18 @@ def test_a_goal_planned_from_a_stale_feedback_is_decided_again(monkeypatch):
     assert len(r.rejections) == 3 and all("path starts at" in x for x in r.rejections)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=400, deadline=None)
 @given(data=st.data())
 def test_robots_whose_bases_are_across_a_network_keep_every_promise(data):
     """As an agent node runs (``base_delay``): its goals reach the world and its base's events
     reach it late, each in order; it decides on its own picture of its base and commits only as
     far as its base's events are in. Faults this found: a late result ignored after a decision
     of the same moment, a hold sent while its base ran on past the object, HCP saying its part
-    done before its last finds were in, CCP dropping a find heard of after its sweep ended."""
+    done before its last finds were in, CCP dropping a find heard of after its sweep ended, and
+    a robot's status after a failure saying it had not begun a carry its base had lifted (the
+    lift not heard of yet): the load went back into the pool, delivered already."""
     s, protocol, policy, how = data.draw(teams())
+    dead = data.draw(failures(s, horizon=300))
     r, report = run_realtime(
         s,
         protocol,
@@ -345,11 +348,13 @@ def test_robots_whose_bases_are_across_a_network_keep_every_promise(data):
         latency=Latency(data.draw(st.integers(0, 30)), data.draw(st.integers(0, 30))),
         seed=data.draw(st.integers(0, 10**6)),
         speed_jitter=data.draw(st.sampled_from([0.0, 0.3])),
+        failures=dead,
+        declare_after=data.draw(st.sampled_from([0.0, 5.0, 40.0])),
         base_delay=Latency(
             data.draw(st.sampled_from([0, 0.3, 1, 2])), data.draw(st.sampled_from([0, 0.5, 3]))
         ),
     )
-    check_remote_run(s, r, report, {})
+    check_remote_run(s, r, report, dead)
 
 
 def check_remote_run(s, r, report, dead):
@@ -402,3 +407,16 @@ def test_ccp_reports_a_find_heard_of_after_its_sweep_ended():
         base_delay=Latency(0.3, 0),
     )  # fmt: skip
     check_remote_run(s, r, report, {0, 2})
+
+
+def test_a_status_after_a_failure_waits_to_know_whether_its_carry_began():
+    """Robot 1 took the notice of robot 3's failure while its base had just lifted object 0 and
+    not said so yet: its status gave the object back to the pool, the base delivered it, and the
+    re-plan sent robot 1 for it again — refused as delivered, forever."""
+    s = generate_scenario(6, 1, 462192, Grid(4, 9), 1)
+    r, report = run_realtime(
+        s, "ccp", latency=Latency(17, 47), seed=92763, failures={0: 132, 3: 23},
+        base_delay=Latency(0.3, 2), stalls=[(1, 29, 61), (3, 6, 48)],
+    )  # fmt: skip
+    check_remote_run(s, r, report, {0, 3})
+    assert r.completed
