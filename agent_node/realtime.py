@@ -502,7 +502,8 @@ class RealtimeAgentNode(Node):
                 self.me, o.id, "carry", float(o.at), object=g.object, group=g.group, state=g.state, life=life
             )
         else:
-            goal = BaseGoal(self.me, o.id, "stand", float(o.at), state=g.state, life=life)
+            kind = "let_go" if g.unless_carrying else "stand"
+            goal = BaseGoal(self.me, o.id, kind, float(o.at), state=g.state, life=life)
         self.guard.publish(self.pub_goals, goal, run=self.run, receivers=(WORLD,))
         if DEBUG:
             self.get_logger().info(f"sent goal {o.id} {goal.kind} at {self.now():.1f}")

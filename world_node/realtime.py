@@ -353,11 +353,13 @@ class RealtimeWorldNode(Node):
             goal = Follow(g.path, g.state)
         elif g.kind == "carry":
             goal = Carry(g.object, g.group, g.state)
-        elif g.kind == "stand":
-            goal = Stand(g.state)
+        elif g.kind in ("stand", "let_go"):
+            goal = Stand(g.state, unless_carrying=g.kind == "let_go")
         else:
             self.throttle.warn(
-                self.sub_goals.topic_name, f"agent {g.agent}", f"kind {g.kind!r}: not follow, stand or carry"
+                self.sub_goals.topic_name,
+                f"agent {g.agent}",
+                f"kind {g.kind!r}: not follow, stand, let_go or carry",
             )
             return
         with self.lock:

@@ -118,12 +118,30 @@ class RtScheduleAgent(ScheduleAgent):
         super().__init__(*args, **kw)
         self.reported: set[int] = set()
         self.sweep_task: Sweep | None = None  # the take-over sweep it is on (None: its own)
+        # The object its base last lifted, as its runtime knows (its base across a network: a
+        # hold may come too late, and where its base went says nothing of a carry); None: unused
+        self.lifted: int | None = None
 
     def act(self, obs: Observation) -> Action:
         self.t, self.position = obs.t, obs.position
         self._search(obs)
+        self._walk_back()
         kind, direction, obj = self._motion(obs)
         return Action(self.id, self.t, kind, direction, obj, self.state.value)
+
+    def _walk_back(self) -> None:
+        """Holding or carrying by its picture, but its base moved on without the load (a hold
+        that came after its base had left the object's cell): nothing is carried — back to it
+        (the lockstep agent would take "it has moved" for a carry under way)."""
+        cur = self.current
+        if (
+            self.lifted is not None
+            and cur is not None
+            and self.state in (GlobalState.WAITING, GlobalState.MOVING)
+            and self.lifted != cur.object
+            and self.position != self.knowledge.objects[cur.object].location
+        ):
+            self.state = GlobalState.HELPING
 
     def _search(self, obs: Observation) -> None:
         if self.state is not GlobalState.SEARCHING:
@@ -210,6 +228,10 @@ class RealtimeAgent:
     # status waits for its base's events up to its time (``_status_wait``), then says
     _unsure_carry: bool = False
     _status_wait: float | None = None
+    _letting_go: int = -1  # its let-go of such a hold, sent and not answered yet (its goal id)
+    _held: tuple[int, Goal | None, str, tuple[Sequence[Cell], int] | None] | None = (
+        None  # (the hold's goal id, goal, label, sweep)
+    )
     _commit_at: float | None = None  # a time to commit once the decision asked for is taken
     # CCP's improved planner: the batch a carry waits to be known (_frozen), open_entries cached
     _gate: int | None = None
@@ -344,6 +366,8 @@ class RealtimeAgent:
         return self._flush(now)
 
     def on_result(self, res: GoalResult, now: float) -> list[Output]:
+        if res.code == "CARRYING" and self._lifted_first(res, now):
+            return self._flush(now)
         if res.goal != self.goal_id or self.out:
             return self._flush(now)  # an older goal's (preempted) result
         if self.remote_base and res.time <= self._decided + EPS:
@@ -438,7 +462,7 @@ class RealtimeAgent:
         a = self.agent
         s = math.ceil(fb.time - EPS)
         self._sync(fb, s)
-        if self._status_due and self._sure_of_carry(fb.time, now):
+        if self._status_due and self._sure_of_carry(fb, now):
             self._status(fb, s)
         plan = a.plan(s, fb.cell)
         searching = a.state.value == SEARCHING_STATE
@@ -457,6 +481,8 @@ class RealtimeAgent:
     def _sync(self, fb: Feedback, s: int) -> None:
         a = self.agent
         a.t, a.position = s, fb.cell
+        if self.remote_base:
+            a.lifted = fb.carrying if fb.carrying >= 0 else self._carry_started
         if self._sweep is not None and fb.goal == self.goal_id and fb.index >= 0:
             path, base = self._sweep
             if a.search.path is path:
@@ -610,6 +636,8 @@ class RealtimeAgent:
         self, goal: Goal, fb: Feedback, sweep: tuple[Sequence[Cell], int] | None = None, force: bool = False
     ) -> None:
         """Send ``goal`` unless the running one already does it."""
+        if self._letting_go >= 0:
+            return  # its let-go is not answered yet: nothing else goes to its base meanwhile
         if self.out:
             return  # its base was stopped when it was declared: nothing until it is back
         g = self.goal
@@ -672,20 +700,51 @@ class RealtimeAgent:
             self.goal, self.label = Stand(GlobalState.DECISION.value), GlobalState.DECISION.value
             self._out.append(SendGoal(self.goal_id, self.goal, now))
 
-    def _sure_of_carry(self, t: float, now: float) -> bool:
+    def _sure_of_carry(self, fb: Feedback, now: float) -> bool:
         """Whether its status can say now if its carry is under way: its base's events are in up
-        to ``t`` (else it waits for them: :meth:`base_known`), the lift among them or not."""
+        to the moment it first asked (else it waits for them: :meth:`base_known`); the lift among
+        them, it keeps the carry; if not, it lets go — with a let-go its base refuses if its group
+        has lifted meanwhile (the two cross the network) — and says so once its base answers."""
         if not self._unsure_carry:
             return True
         if self._status_wait is None:  # (the moment it first asked: its status is of then)
-            self._status_wait = t
+            self._status_wait = fb.time
         if self.speaker.ceiling < self._status_wait - EPS:
             return False
-        self._unsure_carry, self._status_wait = False, None
         task = self._task()
-        if task is not None and self._carry_started != task.object:  # (lifted: its result may be in)
-            self._let_go(now)
-            self._keep = self.agent._taken  # (what it keeps: without it)
+        if task is None or self._carry_started == task.object:  # (lifted: its result may be in)
+            return self._sure()
+        if self._letting_go < 0:
+            self._held = (self.goal_id, self.goal, self.label, self._sweep)
+            self.goal_id += 1
+            self._letting_go = self.goal_id
+            self.goal = Stand(GlobalState.DECISION.value, unless_carrying=True)
+            self.label = GlobalState.DECISION.value
+            self._out.append(SendGoal(self.goal_id, self.goal, now))
+            return False
+        if fb.goal != self._letting_go:
+            return False  # (its base's answer is still to come)
+        a = self.agent  # its let-go took over: not lifted, and never will be
+        a.current = None
+        a._taken -= 1
+        if a.state is not GlobalState.SEARCHING:
+            a.state = GlobalState.DECISION
+        self._keep = a._taken  # (what it keeps: without it)
+        return self._sure()
+
+    def _sure(self) -> bool:
+        self._unsure_carry, self._status_wait, self._letting_go, self._held = False, None, -1, None
+        return True
+
+    def _lifted_first(self, res: GoalResult, now: float) -> bool:
+        """Its let-go came after its group had lifted (refused, CARRYING): the hold goes on as
+        the carry it is, and its status says so."""
+        if res.goal != self._letting_go or self._held is None:
+            return False
+        self.goal_id, self.goal, self.label, self._sweep = self._held
+        self._sure()
+        self._decided = -1.0
+        self._decide_at(now, now)
         return True
 
     def _status(self, fb: Feedback, s: int) -> None:
@@ -791,7 +850,7 @@ class RealtimeAgent:
         a.state = GlobalState.DECISION
         a.reported &= set(k.objects)  # what it said while out counted for nobody: news again
         self._status_due, self._keep = False, 0
-        self._unsure_carry, self._status_wait = False, None
+        self._sure()
         self.goal, self._sweep = None, None
         self._revive = True  # its base was stopped: its next goal, even to stand, takes it back
         self._decided = -1.0

@@ -323,8 +323,6 @@ class RtHcpRuntime(RealtimeAgent):
         super()._sync(fb, s)
         g = self.goal
         self.agent.holding = g.object if isinstance(g, Carry) and fb.goal == self.goal_id else -1
-        if self.remote_base:
-            self.agent.lifted = fb.carrying if fb.carrying >= 0 else self._carry_started
         self.agent.resume_at(fb.cell)
         self.agent.view = self.batches.done  # what its decisions are taken on
 

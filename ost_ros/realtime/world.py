@@ -54,6 +54,7 @@ REFUSALS = {
     "IN_TRANSIT": "another group carries the object",
     "BAD_GROUP": "the group does not hold the robot or is not n_i robots",
     "MEMBER_FAILED": "a member of the group has failed",
+    "CARRYING": "its group carries the object already (a let-go came after the lift)",
     "NOT_AT_BASE": "finished away from its base",
     "FAILED": "the robot has failed",
     "UNKNOWN": "no such object or robot",
@@ -72,6 +73,9 @@ class Follow:
 @dataclass(frozen=True)
 class Stand:
     state: str
+    # (a robot letting go of a hold: refused if its group has lifted already — the robot's status
+    # then says it carries; over DDS the let-go and the lift cross)
+    unless_carrying: bool = False
 
 
 @dataclass(frozen=True)
@@ -495,6 +499,8 @@ class RealtimeWorld:
                 return "PATH", REFUSALS["PATH"]
             return None
         if isinstance(goal, Stand):
+            if goal.unless_carrying and b.kind == "carry":
+                return "CARRYING", REFUSALS["CARRYING"]
             if goal.state == FINISH_STATE and cell != b.base:
                 return "NOT_AT_BASE", f"finished at {cell}, base {b.base}"
             return None

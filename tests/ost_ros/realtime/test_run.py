@@ -337,7 +337,8 @@ def test_robots_whose_bases_are_across_a_network_keep_every_promise(data):
     of the same moment, a hold sent while its base ran on past the object, HCP saying its part
     done before its last finds were in, CCP dropping a find heard of after its sweep ended, and
     a robot's status after a failure saying it had not begun a carry its base had lifted (the
-    lift not heard of yet): the load went back into the pool, delivered already."""
+    lift not heard of yet, or the lift after its let-go was sent): the load went back into the
+    pool, delivered already or dropped mid-way."""
     s, protocol, policy, how = data.draw(teams())
     dead = data.draw(failures(s, horizon=300))
     r, report = run_realtime(
@@ -360,8 +361,13 @@ def test_robots_whose_bases_are_across_a_network_keep_every_promise(data):
 def check_remote_run(s, r, report, dead):
     """check_run, but for the refusals a late goal may draw: a goal planned on a picture its
     base's late events had not corrected yet — a path from where the base was, a hold after the
-    base moved on past the object — is refused, and the robot decides again."""
-    late = [x for x in r.rejections if "path starts at" in x or ("carry refused" in x and "lies at" in x)]
+    base moved on past the object — is refused, and the robot decides again; a let-go that came
+    after its group lifted is refused, and the robot carries."""
+    late = [
+        x
+        for x in r.rejections
+        if "path starts at" in x or ("carry refused" in x and "lies at" in x) or "after the lift" in x
+    ]
     check_run(s, dataclasses.replace(r, rejections=[x for x in r.rejections if x not in late]), report, dead)
 
 
@@ -419,4 +425,36 @@ def test_a_status_after_a_failure_waits_to_know_whether_its_carry_began():
         base_delay=Latency(0.3, 2), stalls=[(1, 29, 61), (3, 6, 48)],
     )  # fmt: skip
     check_remote_run(s, r, report, {0, 3})
+    assert r.completed
+
+
+def test_a_let_go_that_crosses_the_lift_is_refused_and_the_status_keeps_the_carry():
+    """Robots 2 and 4 lifted object 3 while robot 4's let-go (after robot 0's failure, its
+    status waiting to know) was on its way: the let-go stopped the carry mid-way, the load lay
+    where nobody's knowledge put it, and the robots sent for it were refused forever. Now the
+    base refuses a let-go once its group has lifted, and the status says it carries."""
+    objects = [
+        ObjectSpec(0, (5, 2), (0, 9), 2), ObjectSpec(1, (6, 7), (15, 4), 2), ObjectSpec(2, (9, 7), (22, 7), 1),
+        ObjectSpec(3, (19, 5), (16, 6), 2), ObjectSpec(4, (20, 0), (22, 6), 1),
+    ]  # fmt: skip
+    s = build_scenario(Grid(24, 10), objects, partition=(3, 2), nmax=2)
+    policy = CoordinationPolicy(ci=6, organisation="coordinator")
+    r, report = run_realtime(
+        s, "ccp", policy, CcpSettings(planner="improved"), latency=Latency(20, 30), seed=672,
+        failures={0: 129, 3: 194}, declare_after=5.0, base_delay=Latency(0.3, 3),
+    )  # fmt: skip
+    check_remote_run(s, r, report, {0, 3})
+    assert r.completed
+
+
+def test_a_schedule_robot_whose_base_moved_on_without_its_load_walks_back():
+    """Robot 3's hold came after its base had moved on past object 3 (its base a step away): its
+    body, holding by its picture, took "it has moved" for a carry under way and asked to carry
+    from the wrong cell, refused forever. Now a body not lifted walks back to the object."""
+    s = generate_scenario(6, 7, 891400, Grid(18, 4), 2)
+    r, report = run_realtime(
+        s, "ccp", CoordinationPolicy(ci=1), CcpSettings(planner="improved"), latency=Latency(8, 10),
+        seed=789783, base_delay=Latency(1, 0), stalls=[(2, 50, 62)],
+    )  # fmt: skip
+    check_remote_run(s, r, report, {})
     assert r.completed

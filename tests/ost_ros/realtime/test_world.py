@@ -87,6 +87,28 @@ def test_the_last_member_of_the_declared_group_starts_the_carry_and_no_other_gro
     assert w.bots[2].kind == "hold"  # still holding for its group: it will never start
 
 
+def test_a_let_go_releases_a_hold_and_is_refused_once_the_group_has_lifted():
+    """A robot letting go of a hold after a failure (its let-go crossing the network while its
+    group may lift): a hold not lifted is released; a carry under way goes on, the let-go refused."""
+    obj = ObjectSpec(0, (2, 1), (6, 1), 2)
+    w = RealtimeWorld(line(periods=(1, 1), objects=[obj]))
+    for a in (0, 1):
+        w.goal(a, 1, Follow(((0, 1), (1, 1), (2, 1)), "HELPING"), 0.0)
+    run_until(w, 2)
+    w.goal(0, 2, Carry(0, (0, 1), "WAITING"), 2.0)
+    assert w.goal(0, 3, Stand("DECISION", unless_carrying=True), 2.0) == [
+        GoalResult(0, 2, PREEMPTED, 2.0, (2, 1))
+    ]
+    w.goal(0, 4, Carry(0, (0, 1), "WAITING"), 3.0)
+    w.goal(1, 2, Carry(0, (0, 1), "WAITING"), 3.0)  # the lift at 3
+    run_until(w, 3)
+    refused = w.goal(1, 3, Stand("DECISION", unless_carrying=True), 3.5)
+    assert refused[0].outcome == REFUSED and refused[0].code == "CARRYING"
+    assert w.objects[0].carriers == (0, 1)  # it goes on
+    run_until(w, 100)
+    assert w.objects[0].delivered == 7
+
+
 def test_refusals_name_their_reason():
     w = RealtimeWorld(line(objects=[ObjectSpec(0, (4, 1), (6, 1), 1)]))
     assert w.goal(0, 1, Carry(0, (0,), "WAITING"), 0.0)[0].code == "NOT_AT_OBJECT"
