@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The test command: sets up the venv if needed (idempotent), then runs the whole suite.
-#   tests/run.sh                 # everything
+#   tests/run.sh                 # everything (in-process tests on every core, then the DDS ones)
 #   tests/run.sh -k coordination # extra arguments go to pytest
 #   tests/run.sh -m "not dds"    # the in-process suite alone (no ROS processes)
 #   OST_LINT=0 tests/run.sh ...  # skip ruff and mypy (they run first otherwise; pyproject.toml)
@@ -34,4 +34,12 @@ fi
 # DDS tests pick their own ROS_DOMAIN_ID per run; all DDS traffic stays on this host's loopback
 # interface (bringup_scripts/dds_env.sh, docs/ros.md "Transport").
 . "$repo/bringup_scripts/dds_env.sh"
-exec "$venv/bin/python" -m pytest tests "$@"
+if [ $# -gt 0 ]; then
+  exec "$venv/bin/python" -m pytest tests "$@"
+fi
+# Everything: the in-process tests on every core (pytest-xdist), then the DDS tests one at a time
+# (they start processes and wait on real time: two runs at once would starve each other).
+status=0
+"$venv/bin/python" -m pytest tests -m "not dds" -n "$(nproc)" || status=$?
+"$venv/bin/python" -m pytest tests -m dds || { s=$?; [ "$status" != 0 ] || status=$s; }
+exit "$status"
