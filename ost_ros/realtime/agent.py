@@ -690,15 +690,24 @@ class RealtimeAgent:
     def _let_go(self, now: float) -> None:
         """What it has taken up and not begun goes back into the pool; a hold is let go now (no
         lift without it)."""
+        self._give_back()
+        if isinstance(self.goal, Carry) and not self.out:
+            self._stand(now)
+
+    def _give_back(self) -> None:
+        """The task it has taken up goes back into the pool: it decides again."""
         a = self.agent
         a.current = None
         a._taken -= 1
         if a.state is not GlobalState.SEARCHING:
             a.state = GlobalState.DECISION
-        if isinstance(self.goal, Carry) and not self.out:
-            self.goal_id += 1
-            self.goal, self.label = Stand(GlobalState.DECISION.value), GlobalState.DECISION.value
-            self._out.append(SendGoal(self.goal_id, self.goal, now))
+
+    def _stand(self, now: float, unless_carrying: bool = False) -> None:
+        """Its base stands from now (``unless_carrying``: refused once its group has lifted)."""
+        self.goal_id += 1
+        self.goal = Stand(GlobalState.DECISION.value, unless_carrying=unless_carrying)
+        self.label = GlobalState.DECISION.value
+        self._out.append(SendGoal(self.goal_id, self.goal, now))
 
     def _sure_of_carry(self, fb: Feedback, now: float) -> bool:
         """Whether its status can say now if its carry is under way: its base's events are in up
@@ -716,20 +725,13 @@ class RealtimeAgent:
             return self._sure()
         if self._letting_go < 0:
             self._held = (self.goal_id, self.goal, self.label, self._sweep)
-            self.goal_id += 1
+            self._stand(now, unless_carrying=True)
             self._letting_go = self.goal_id
-            self.goal = Stand(GlobalState.DECISION.value, unless_carrying=True)
-            self.label = GlobalState.DECISION.value
-            self._out.append(SendGoal(self.goal_id, self.goal, now))
             return False
         if fb.goal != self._letting_go:
             return False  # (its base's answer is still to come)
-        a = self.agent  # its let-go took over: not lifted, and never will be
-        a.current = None
-        a._taken -= 1
-        if a.state is not GlobalState.SEARCHING:
-            a.state = GlobalState.DECISION
-        self._keep = a._taken  # (what it keeps: without it)
+        self._give_back()  # its let-go took over: not lifted, and never will be
+        self._keep = self.agent._taken  # (what it keeps: without it)
         return self._sure()
 
     def _sure(self) -> bool:

@@ -164,8 +164,7 @@ class RtHcpAgent(HcpAgent):
         ):
             # its base moved on without it (a hold came after its base had left, as over a
             # network): nothing is carried — back to it (not "delivered on arrival")
-            self.state = HcpState.HELPING
-            self.walked_back += 1
+            self.walk_back(obj.id)
             return None
         return super()._carrying()
 
