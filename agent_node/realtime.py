@@ -44,7 +44,15 @@ from ost_ros.node import transport as tp
 from ost_ros.node.params import declare_agent
 from ost_ros.node.plumbing import Alive, renew_endpoints
 from ost_ros.node.signing import node_auth
-from ost_ros.realtime.agent import AskFeedback, Output, Publish, RealtimeAgent, SendGoal, WakeAt
+from ost_ros.realtime.agent import (
+    AskFeedback,
+    Output,
+    Publish,
+    RealtimeAgent,
+    SendGoal,
+    WakeAt,
+    decision_time,
+)
 from ost_ros.realtime.base import mirror_of, unpack
 from ost_ros.realtime.membership import misfit
 from ost_ros.realtime.messages import (
@@ -462,7 +470,7 @@ class RealtimeAgentNode(Node):
         started nor ended yet, or the route running is over by now with no result yet (then once
         its events say so)."""
         now = self.now()
-        t = max(at, now)
+        t = decision_time(at, now)
         if not self.mirror.settled(t) and not self.rt.out:  # (out: its base is stopped)
             self.ask_at = at
             return

@@ -90,6 +90,24 @@ def row(label: str, res: dict, ref: float) -> str:
     )
 
 
+def keeps_up(lags: dict[float, list[float]]) -> list[str]:
+    """The highest real-time factor run at which no robot lagged more than one step, and the
+    factor the slowest run's lag points to: a lag of L steps at rtf R is L / R wall seconds, and
+    the pace a team keeps within one step is about R / L (the wall lag is the robots' own work)."""
+    if not lags:
+        return []
+    ok = [r for r, ls in lags.items() if max(ls) <= 1.0]
+    best = f"rtf {max(ok):g}" if ok else f"none of {', '.join(f'{r:g}' for r in lags)}"
+    r0 = min(lags)
+    worst = max(lags[r0])
+    wall = f"{worst / r0:.3f} s of wall" if worst > 0 else "0 s"
+    bound = f"; about rtf {r0 / worst:.3g} keeps it within one step" if worst > 0 else ""
+    return [
+        f"highest rtf run with every robot's largest lag at most 1 step: {best}",
+        f"at rtf {r0:g} the largest lag is {worst:.1f} steps = {wall}{bound}",
+    ]
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rtf", default="100,300,1000,3000", help="real-time factors, comma-separated")
@@ -143,19 +161,22 @@ def main(argv: list[str] | None = None) -> int:
                 ref = sim_makespan(lock["_scenario"])
                 lines.append(row("lockstep", lock, ref))
                 print(lines[-1], flush=True)
+            lags: dict[float, list[float]] = {}
             for r in rs:
                 spans = []
                 for _ in range(a.repeat):
                     res = run_up(n, m, seed, r, nmax, a.clock_hz, size, a.membership)
                     ref = ref if ref is not None else sim_makespan(res["_scenario"])
                     spans.append(res["makespan"])
+                    lags.setdefault(r, []).append(max(res.get("lag", {}).values(), default=0.0))
                     lines.append(row(f"realtime rtf {r:g}", res, ref))
                     print(lines[-1], flush=True)
                 if a.repeat > 1 and ref is not None:
                     med = statistics.median(spans)
                     lines.append(f"| rtf {r:g}: median of {a.repeat} | | | {med:.0f} | {100 * (med / ref - 1):+.1f} % | | | | |")  # fmt: skip
                     print(lines[-1], flush=True)
-            lines.append("")
+            lines += ["", *keeps_up(lags), ""]
+            print("\n".join(lines[-3:-1]), flush=True)
     a.out.mkdir(parents=True, exist_ok=True)
     (a.out / "realtime_dds.md").write_text("\n".join(lines) + "\n")
     print(f"wrote {a.out / 'realtime_dds.md'}")

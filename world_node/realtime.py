@@ -66,7 +66,7 @@ from ost_ros.lockstep.messages import AgentReport, RunEnd
 from ost_ros.lockstep.world import result_from_reports
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
-from ost_ros.node.params import ParameterError, declare_role, node_scenario
+from ost_ros.node.params import ParameterError, declare_role, node_scenario, without_services
 from ost_ros.node.plumbing import Readiness, Result, SignalFiles
 from ost_ros.node.run import process_age
 from ost_ros.node.signing import node_auth
@@ -110,7 +110,9 @@ class BasesNode(Node):
     thread (``world.execute``), and its result comes back when the world ends it."""
 
     def __init__(self, world: RealtimeWorldNode):
-        super().__init__("bases", namespace=tp.NAMESPACE)
+        # (no parameter services: it has no parameters — the world's node holds them — and they
+        # were 14 endpoints every participant of the run discovers)
+        super().__init__("bases", namespace=tp.NAMESPACE, **without_services())
         self.world = world
         self.servers = {
             i: ActionServer(
@@ -405,7 +407,7 @@ class RealtimeWorldNode(Node):
             # home (rtf 1000: 6 runs of 6 ended so once the event timer ran late).
             now = self.sim_now()
             self.advance(now)
-            for ev in self.world.goal(agent, gid, goal, max(at, now), life):
+            for ev in self.world.goal(agent, gid, goal, self.world.takeover(agent, goal, at, now), life):
                 self.dispatch(ev)
             self.after_events()
 

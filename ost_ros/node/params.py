@@ -158,8 +158,11 @@ def robot_node_options(argv: list[str]) -> dict[str, Any]:
     robot that every participant of the run discovers and keeps in its graph, and nobody of the
     team calls them: at N=50 they are a third of the run's endpoints and of its bring-up
     (docs/ros.md, "Bring-up"). The robot still declares its parameters (read-only)."""
-    if flag_from_args(argv, "param_services"):
-        return {}
+    return {} if flag_from_args(argv, "param_services") else without_services()
+
+
+def without_services() -> dict[str, Any]:
+    """``rclpy.node.Node`` keywords for a node without parameter and type-description services."""
     return {
         "start_parameter_services": False,
         "parameter_overrides": [Parameter("start_type_description_service", value=False)],

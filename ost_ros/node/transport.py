@@ -16,6 +16,7 @@ markers, result, alive, poses, the base's action) are ordinary typed traffic.
 from __future__ import annotations
 
 import hashlib
+import json
 import re
 import time
 from collections.abc import Callable
@@ -34,7 +35,7 @@ from ost_ros import protocols
 from ost_ros.lockstep.messages import Acted, AgentReport, Ready, Resend, RunEnd, RunInfo, Sample, Tick
 from ost_ros.model import Scenario
 from ost_ros.node.signing import NodeAuth
-from ost_ros.scenario import dump_scenario
+from ost_ros.scenario import scenario_to_dict
 
 NAMESPACE = "/ost"  # the nodes' default namespace
 WORLD_NODE = "world"
@@ -211,8 +212,10 @@ def sender_of(value: Any) -> str:
 
 
 def scenario_fingerprint(scenario: Scenario) -> str:
-    """Short hash of the scenario: the world refuses agents that loaded a different one."""
-    return hashlib.sha256(dump_scenario(scenario).encode()).hexdigest()[:16]
+    """Short hash of the scenario: the world refuses agents that loaded a different one. (Of its
+    canonical JSON: the YAML text took every robot 0.15 CPU-s at N=50 M=200, a tenth of its start.)"""
+    text = json.dumps(scenario_to_dict(scenario), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 _DIGITS = re.compile(r"\d+")

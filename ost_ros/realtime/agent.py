@@ -99,6 +99,19 @@ class AskFeedback:
     at: float
 
 
+# A robot whose base is across a network decides as of the time its decision was due if that is
+# less than this much ago (steps): its goal then has the rest of the step to reach the base, which
+# takes it over at that time (RealtimeWorld.takeover) — as a base on board would.
+DECIDE_WINDOW = 0.5
+
+
+def decision_time(at: float, now: float) -> float:
+    """The moment a decision asked for ``at`` is taken as of, answered at ``now`` (a robot whose
+    base is across a network: its picture of the base answers): ``at`` if due less than
+    DECIDE_WINDOW ago, else now."""
+    return at if now - DECIDE_WINDOW < at else max(at, now)
+
+
 @dataclass(frozen=True)
 class WakeAt:
     time: float
@@ -220,6 +233,7 @@ class RealtimeAgent:
     _acted: int = -1  # step of the last act
     _wakes: set[float] = field(default_factory=set)
     _dues: set[float] = field(default_factory=set)  # times a decision is due at
+    _goal_at: float = -1.0  # the time the last goal it sent takes over at (at the earliest)
     _carry_started: int = -1  # object whose carry the base has begun
     _blocked: int = -1  # object whose group lost a member: no CARRY for it until the comm knows
     _keep: int = 0  # own schedule entries done or under way when a failure was learnt
@@ -321,7 +335,7 @@ class RealtimeAgent:
         due = [d for d in self._dues if d <= now + EPS]
         if due:
             self._dues.difference_update(due)
-            self._decide_at(now, now)
+            self._decide_at(min(due), now)
         self._commit(now)
         return self._flush(now)
 
@@ -450,7 +464,9 @@ class RealtimeAgent:
             return
         if not self._asked:
             self._asked, self._asked_at = True, now
-            self._out.append(AskFeedback(now))
+            # (its base across a network: as of when it was due — decision_time — and never
+            # before the goal it sent last)
+            self._out.append(AskFeedback(max(t, self._goal_at) if self.remote_base else now))
 
     def _decide(self, fb: Feedback, now: float) -> None:
         if abs(fb.time - self._decided) < EPS:
@@ -660,6 +676,7 @@ class RealtimeAgent:
         self._sweep = sweep
         self.label = goal.state
         self._carry_started = -1  # a new goal: no lift of it yet (on_carry says when)
+        self._goal_at = fb.time
         self._out.append(SendGoal(self.goal_id, goal, fb.time))
 
     # ------------------------------------------------------------------ failures
@@ -707,6 +724,7 @@ class RealtimeAgent:
         self.goal_id += 1
         self.goal = Stand(GlobalState.DECISION.value, unless_carrying=unless_carrying)
         self.label = GlobalState.DECISION.value
+        self._goal_at = max(self._goal_at, now)
         self._out.append(SendGoal(self.goal_id, self.goal, now))
 
     def _sure_of_carry(self, fb: Feedback, now: float) -> bool:

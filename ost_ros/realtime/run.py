@@ -29,6 +29,7 @@ from ost_ros.realtime.agent import (
     RtScheduleAgent,
     SendGoal,
     WakeAt,
+    decision_time,
 )
 from ost_ros.realtime.base import BaseMirror, mirror_of
 from ost_ros.realtime.comms import RtAuctionComm, RtCcpComm, RtGreedyComm, RtNcpComm
@@ -363,9 +364,9 @@ class _Run:
         return at
 
     def goal_arrives(self, agent: int, o: SendGoal, life: int, now: float) -> None:
-        """A robot's goal reaches the world: it takes over from now at the earliest (as the world
-        node starts a late goal)."""
-        for r in self.world.goal(agent, o.id, o.goal, max(o.at, now), life):
+        """A robot's goal reaches the world: it takes over when the world node takes it over
+        (:meth:`RealtimeWorld.takeover`: at its decision's time if less than a step ago)."""
+        for r in self.world.goal(agent, o.id, o.goal, self.world.takeover(agent, o.goal, o.at, now), life):
             self.base_event(r, now)
         self.schedule_world()
 
@@ -410,7 +411,7 @@ class _Run:
         """A decision asks where its base is: its picture answers, once it holds then (as an
         agent node's ``decide``)."""
         ra = self.agents[agent]
-        t = max(at, now)
+        t = decision_time(at, now)
         m = self.mirrors[agent]
         if not m.settled(t) and not ra.out:
             self._asking[agent] = at

@@ -485,6 +485,23 @@ class RealtimeWorld:
             )
         return out
 
+    def takeover(self, agent: int, goal: Goal, at: float, now: float) -> float:
+        """When a goal for ``agent``'s base, decided for time ``at``, takes over if it reaches the
+        base at ``now`` (an agent node's goal crosses a network). At ``at`` if that is less than
+        a step ago, not before the running goal began, and the goal only moves or stands a robot
+        that neither holds nor carries: a move takes a step at least, so every event the goal
+        causes (an arrival, a detection) is still to come — the robot decided in step ⌈at⌉ and
+        its base starts in that step, as a base on board would. Otherwise now: a hold's lift, a
+        let-go or a carry broken concern the partners' bases too, and nothing of theirs is
+        rewritten. (Taken at now, every decision a few milliseconds late cost a whole step: the
+        first move begins at a step's start — 48 steps of a 1 660-step run.)"""
+        b = self.bots.get(agent)
+        if b is None or not now - 1.0 + EPS < at < now or b.kind in ("hold", "carry"):
+            return max(at, now)
+        if not isinstance(goal, Follow | Stand) or (isinstance(goal, Stand) and goal.unless_carrying):
+            return now
+        return at if at >= (b.route.start if b.route is not None else b.time) - EPS else now
+
     def _refuse(self, b: _Bot, goal: Goal, cell: Cell) -> tuple[str, str] | None:
         if isinstance(goal, Follow):
             path = goal.path

@@ -66,6 +66,37 @@ def test_a_new_goal_takes_over_at_the_next_cell_boundary():
     assert refused[0].outcome == REFUSED and refused[0].code == "START"
 
 
+def test_a_goal_decided_less_than_a_step_ago_takes_over_when_it_was_decided():
+    """An agent node's goal reaches the world milliseconds after its decision: a move or a stand
+    takes over at the decision's time (every event it causes is still to come: a move takes a
+    step), so its first move begins in that step — not in the next one."""
+    w = RealtimeWorld(line())
+    w.goal(0, 1, Follow(((0, 1), (1, 1)), "HELPING"), 0.0)
+    assert run_until(w, 1) == [GoalResult(0, 1, REACHED, 1, (1, 1))]
+    go = Follow(((1, 1), (2, 1), (3, 1)), "HELPING")
+    assert w.takeover(0, go, 1.0, 1.4) == 1.0  # decided at 1 (on its result), here at 1.4
+    assert w.takeover(0, Stand("DECISION"), 1.0, 1.4) == 1.0
+    assert w.takeover(0, go, 1.0, 2.0) == 2.0  # a step late: its first move may have been due
+    assert w.takeover(0, go, 0.5, 1.4) == 1.4  # before the running goal took over
+    assert w.takeover(0, go, 1.6, 1.4) == 1.6  # (for later: as asked)
+    w.goal(0, 2, go, w.takeover(0, go, 1.0, 1.4))
+    assert run_until(w, 10) == [GoalResult(0, 2, REACHED, 3, (3, 1))]
+
+
+def test_a_hold_or_a_let_go_takes_over_when_it_arrives():
+    """A hold's lift and a let-go concern the partners' bases too: never taken over earlier."""
+    obj = ObjectSpec(0, (2, 1), (6, 1), 2)
+    w = RealtimeWorld(line(periods=(1, 1), objects=[obj]))
+    for a in (0, 1):
+        w.goal(a, 1, Follow(((0, 1), (1, 1), (2, 1)), "HELPING"), 0.0)
+    run_until(w, 2)
+    hold = Carry(0, (0, 1), "WAITING")
+    assert w.takeover(0, hold, 2.0, 2.3) == 2.3
+    w.goal(0, 2, hold, 2.3)
+    assert w.takeover(0, Stand("DECISION", unless_carrying=True), 2.3, 2.5) == 2.5
+    assert w.takeover(0, Follow(((2, 1), (3, 1)), "HELPING"), 2.3, 2.5) == 2.5  # it holds
+
+
 def test_the_last_member_of_the_declared_group_starts_the_carry_and_no_other_group_does():
     obj = ObjectSpec(0, (2, 1), (6, 1), 2)
     w = RealtimeWorld(line(periods=(1, 1, 1), objects=[obj]))
