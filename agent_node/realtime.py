@@ -471,7 +471,8 @@ class RealtimeAgentNode(Node):
         its events say so)."""
         now = self.now()
         t = decision_time(at, now)
-        if not self.mirror.settled(t) and not self.rt.out:  # (out: its base is stopped)
+        # (a route over by now waits for its result, even if the decision is taken as of before)
+        if not self.mirror.settled(max(t, now)) and not self.rt.out:  # (out: its base is stopped)
             self.ask_at = at
             return
         self.out(self.rt.on_feedback(self.mirror.feedback(t), now))

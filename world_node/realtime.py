@@ -382,11 +382,21 @@ class RealtimeWorldNode(Node):
         else:
             goal = Stand(req.state)
         self.goals[(agent, req.id)] = (handle, fut)
-        self.apply(agent, int(req.id), goal, float(req.at))
+        self.apply(agent, int(req.id), goal, float(req.at), decided=False)
 
-    def apply(self, agent: int, gid: int, goal: Follow | Stand | Carry, at: float, life: int = 0) -> None:
+    def apply(
+        self,
+        agent: int,
+        gid: int,
+        goal: Follow | Stand | Carry,
+        at: float,
+        life: int = 0,
+        decided: bool = True,
+    ) -> None:
         """(Under the lock) goal ``gid`` for ``agent``'s base, handed to the world now (``life``:
-        its robot's; a base stopped when its robot was declared out takes a later life back)."""
+        its robot's; a base stopped when its robot was declared out takes a later life back).
+        ``decided``: its robot's, which may take over at its decision's time
+        (:meth:`RealtimeWorld.takeover`); an operator's takes over from now at the earliest."""
         b = self.world.bots.get(agent)
         if b is not None and b.out and life > b.life and self.started and self.ended is None:
             self.live.add(agent)  # readmitted by the team: its base is its again
@@ -407,7 +417,8 @@ class RealtimeWorldNode(Node):
             # home (rtf 1000: 6 runs of 6 ended so once the event timer ran late).
             now = self.sim_now()
             self.advance(now)
-            for ev in self.world.goal(agent, gid, goal, self.world.takeover(agent, goal, at, now), life):
+            when = self.world.takeover(agent, goal, at, now) if decided else max(at, now)
+            for ev in self.world.goal(agent, gid, goal, when, life):
                 self.dispatch(ev)
             self.after_events()
 

@@ -464,9 +464,10 @@ class RealtimeAgent:
             return
         if not self._asked:
             self._asked, self._asked_at = True, now
-            # (its base across a network: as of when it was due — decision_time — and never
-            # before the goal it sent last)
-            self._out.append(AskFeedback(max(t, self._goal_at) if self.remote_base else now))
+            # (its base across a network: as of when it was due — decision_time — unless that
+            # goes back before its last decision or the goal it sent last)
+            back = t < max(self._goal_at, self._decided) - EPS
+            self._out.append(AskFeedback(t if self.remote_base and not back else now))
 
     def _decide(self, fb: Feedback, now: float) -> None:
         if abs(fb.time - self._decided) < EPS:
@@ -902,7 +903,12 @@ class RealtimeAgent:
         if self._asked:
             self._commit_at = now if self._commit_at is None else max(self._commit_at, now)
             return
-        self._marks(self.speaker.commit(self._capped(math.floor(now + EPS))), now)
+        c = self._capped(math.floor(now + EPS))
+        if self.remote_base:  # (a decision due is taken as of its time: not committed past)
+            due = [d for d in self._dues if d <= now + EPS]
+            if due:
+                c = min(c, math.ceil(min(due) - EPS) - 1)
+        self._marks(self.speaker.commit(c), now)
 
     def _capped(self, t: int) -> int:
         """A carry gated in step s (:meth:`_frozen`) is decided again in s once the gate opens:

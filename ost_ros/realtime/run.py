@@ -413,7 +413,7 @@ class _Run:
         ra = self.agents[agent]
         t = decision_time(at, now)
         m = self.mirrors[agent]
-        if not m.settled(t) and not ra.out:
+        if not m.settled(max(t, now)) and not ra.out:  # (a route over by now: its result first)
             self._asking[agent] = at
             return
         self.dispatch(agent, ra.on_feedback(m.feedback(t), now), now)

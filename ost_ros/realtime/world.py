@@ -33,7 +33,7 @@ import heapq
 import math
 from collections import defaultdict
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -44,6 +44,7 @@ from ost_ros.search import route
 from ost_ros.sensing import BLOCK, first_sensing
 
 EPS = 1e-9
+E = TypeVar("E")  # an event kind (:meth:`RealtimeWorld._noted`)
 
 REACHED, PREEMPTED, REFUSED, ABORTED = "reached", "preempted", "refused", "aborted"
 REFUSALS = {
@@ -351,6 +352,7 @@ class RealtimeWorld:
         self._carries: dict[int, _Carry] = {}
         self._depart: dict[int, tuple[float, int]] = {}  # obj -> (time, version) of a pending lift
         self._serial = 0  # versions of lifts and carries: never reused, so a stale event never fits
+        self._last_event: dict[int, float] = {}  # agent -> the time of its base's last event
         self._heap: list[tuple[float, int, int, tuple]] = []
         self._count = 0
         self._rng = np.random.default_rng(self.seed)
@@ -453,7 +455,7 @@ class RealtimeWorld:
         if b is not None and b.out and life > b.life:
             self.revive(agent, at, life)
         if b is None or not b.alive:
-            return [GoalResult(agent, gid, REFUSED, at, (0, 0), "FAILED", REFUSALS["FAILED"])]
+            return self._noted([GoalResult(agent, gid, REFUSED, at, (0, 0), "FAILED", REFUSALS["FAILED"])])
         self._done = None
         self.now = max(self.now, at)
         cell, time, m = self._handover(b, at)
@@ -464,7 +466,7 @@ class RealtimeWorld:
                 self.refusals.append(
                     f"t={_num(at)} agent {agent}: {type(goal).__name__.lower()} refused: {reason}"
                 )
-            return [GoalResult(agent, gid, REFUSED, at, cell, code, reason)]
+            return self._noted([GoalResult(agent, gid, REFUSED, at, cell, code, reason)])
         out: list[Any] = self._leave(b, at, time, cell, m)
         b.broken = None
         self._finish_label(b, goal, time)
@@ -483,24 +485,35 @@ class RealtimeWorld:
             out.append(
                 GoalStarted(agent, gid, time, cell, b.offset if b.kind == "follow" else 0, first, b.factor)
             )
-        return out
+        return self._noted(out)
+
+    def _noted(self, events: list[E]) -> list[E]:
+        """``events``, each base's last event time kept (:meth:`takeover` never goes before it)."""
+        last = self._last_event
+        for ev in events:
+            for a in ev.group if isinstance(ev, CarryStarted) else (ev.agent,):  # type: ignore[attr-defined]
+                last[a] = max(last.get(a, -math.inf), ev.time)  # type: ignore[attr-defined]
+        return events
 
     def takeover(self, agent: int, goal: Goal, at: float, now: float) -> float:
-        """When a goal for ``agent``'s base, decided for time ``at``, takes over if it reaches the
+        """When a robot's goal for its base, decided for time ``at``, takes over if it reaches the
         base at ``now`` (an agent node's goal crosses a network). At ``at`` if that is less than
-        a step ago, not before the running goal began, and the goal only moves or stands a robot
-        that neither holds nor carries: a move takes a step at least, so every event the goal
-        causes (an arrival, a detection) is still to come — the robot decided in step ⌈at⌉ and
-        its base starts in that step, as a base on board would. Otherwise now: a hold's lift, a
-        let-go or a carry broken concern the partners' bases too, and nothing of theirs is
-        rewritten. (Taken at now, every decision a few milliseconds late cost a whole step: the
-        first move begins at a step's start — 48 steps of a 1 660-step run.)"""
+        a step ago, not before any event the base has had (its events stay in time order), and
+        the goal moves (two cells at least) or stands a robot that neither holds nor carries: a
+        move takes a step at least, so every event the goal causes — an arrival, a detection, its
+        end — is still to come; the robot decided in step ⌈at⌉ and its base starts in that step,
+        as a base on board would. Otherwise now: a hold's lift, a let-go or a carry broken concern
+        the partners' bases too, and nothing of theirs is rewritten. (Taken at now, a decision a
+        few milliseconds late cost a whole step: the first move begins at a step's start — 48
+        steps of a 1 660-step run.)"""
         b = self.bots.get(agent)
         if b is None or not now - 1.0 + EPS < at < now or b.kind in ("hold", "carry"):
             return max(at, now)
-        if not isinstance(goal, Follow | Stand) or (isinstance(goal, Stand) and goal.unless_carrying):
-            return now
-        return at if at >= (b.route.start if b.route is not None else b.time) - EPS else now
+        if isinstance(goal, Follow):
+            moves = len(goal.path) > 1
+        else:
+            moves = isinstance(goal, Stand) and not goal.unless_carrying
+        return at if moves and at >= self._last_event.get(agent, -math.inf) - EPS else now
 
     def _refuse(self, b: _Bot, goal: Goal, cell: Cell) -> tuple[str, str] | None:
         if isinstance(goal, Follow):
@@ -885,7 +898,7 @@ class RealtimeWorld:
                 if det is not None:
                     out.append(det)
         self.now = max(self.now, now)
-        return out
+        return self._noted(out)
 
     def _detect(self, ev: tuple, t: float) -> Detection | None:
         b = self.bots[ev[1]]

@@ -77,7 +77,8 @@ def test_a_goal_decided_less_than_a_step_ago_takes_over_when_it_was_decided():
     assert w.takeover(0, go, 1.0, 1.4) == 1.0  # decided at 1 (on its result), here at 1.4
     assert w.takeover(0, Stand("DECISION"), 1.0, 1.4) == 1.0
     assert w.takeover(0, go, 1.0, 2.0) == 2.0  # a step late: its first move may have been due
-    assert w.takeover(0, go, 0.5, 1.4) == 1.4  # before the running goal took over
+    assert w.takeover(0, go, 0.5, 1.4) == 1.4  # before its base's last event (reached at 1)
+    assert w.takeover(0, Follow(((1, 1),), "HELPING"), 1.0, 1.4) == 1.4  # no move: reached now
     assert w.takeover(0, go, 1.6, 1.4) == 1.6  # (for later: as asked)
     w.goal(0, 2, go, w.takeover(0, go, 1.0, 1.4))
     assert run_until(w, 10) == [GoalResult(0, 2, REACHED, 3, (3, 1))]
