@@ -332,7 +332,7 @@ class RealtimeAgent:
     def on_clock(self, now: float) -> list[Output]:
         """A timer fired (``WakeAt``): decisions due, then commit the time passed."""
         self._wakes = {w for w in self._wakes if w > now + EPS}
-        due = [d for d in self._dues if d <= now + EPS]
+        due = self._due(now)
         if due:
             self._dues.difference_update(due)
             self._decide_at(min(due), now)
@@ -905,10 +905,14 @@ class RealtimeAgent:
             return
         c = self._capped(math.floor(now + EPS))
         if self.remote_base:  # (a decision due is taken as of its time: not committed past)
-            due = [d for d in self._dues if d <= now + EPS]
+            due = self._due(now)
             if due:
                 c = min(c, math.ceil(min(due) - EPS) - 1)
         self._marks(self.speaker.commit(c), now)
+
+    def _due(self, now: float) -> list[float]:
+        """The decisions due by now and not taken yet (their times)."""
+        return [d for d in self._dues if d <= now + EPS]
 
     def _capped(self, t: int) -> int:
         """A carry gated in step s (:meth:`_frozen`) is decided again in s once the gate opens:
