@@ -378,6 +378,18 @@ def _environment(run: Run, owner: int) -> None:
     if domain < 0:
         domain, run.domain_lock = free_domain(owner)
     env["ROS_DOMAIN_ID"] = str(domain)
+    if (
+        cfg["realtime"]
+        and not cfg["hosts"]
+        and env.get("FASTRTPS_DEFAULT_PROFILES_FILE") == str(LOCALHOST_PROFILE)
+    ):
+        # what every robot reads goes out once, by multicast (docs/ros.md, "Transport")
+        from ost_ros.commands.dds_profile import write_realtime_profile
+
+        path = write_realtime_profile(
+            run.dir, LOCALHOST_PROFILE, cfg["namespace"], cfg["protocol"], cfg["coordination"]
+        )
+        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(path)
     if cfg["hosts"]:
         from ost_ros.commands import hosts
 

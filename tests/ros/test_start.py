@@ -6,11 +6,12 @@ import re
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
-from tests.ros.dds_helpers import INSECURE, PROFILE
+from tests.ros.dds_helpers import BIN, INSECURE, PROFILE, ros_env
 
 
 def receive_buffer() -> int:
@@ -61,3 +62,39 @@ def test_a_node_receives_on_sockets_of_the_profiles_size(tmp_path, procs, domain
     # Linux doubles what is asked (bookkeeping) and caps the request at net.core.rmem_max.
     cap = int(Path("/proc/sys/net/core/rmem_max").read_text())
     assert all(rb >= 2 * min(receive_buffer(), cap) for rb in sizes.values()), sizes
+
+
+def sockets_of(pid: int) -> set[tuple[str, int]]:
+    """(address, port) of the UDP sockets process ``pid`` holds (ss -u -a -n -p)."""
+    listing = subprocess.run(["ss", "-u", "-a", "-n", "-p"], capture_output=True, text=True, check=True)
+    found = set()
+    for line in listing.stdout.splitlines():
+        local = re.search(r"^\S+\s+\d+\s+\d+\s+(\S+):(\d+)\s", line)
+        if f"pid={pid}," in line and local:
+            found.add((local.group(1), int(local.group(2))))
+    return found
+
+
+@pytest.mark.skipif(shutil.which("ss") is None, reason="needs ss (iproute2) to list a process's sockets")
+def test_a_robot_reads_its_peers_on_the_domains_multicast_port(tmp_path, procs, domain):
+    # (docs/ros.md, "Transport": with a realtime run's profile a writer sends a sample once to
+    # the domain's user multicast locator, 239.255.0.1 at 7401 + 250 x domain, not once per reader)
+    from ost_ros.commands.dds_profile import write_realtime_profile
+    from ost_ros.model import Grid
+    from ost_ros.scenario import dump_scenario, generate_scenario
+
+    path = tmp_path / "s.yaml"
+    path.write_text(dump_scenario(generate_scenario(2, 2, 1, Grid(20, 10), 2)))
+    env = ros_env(domain)
+    env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(
+        write_realtime_profile(tmp_path, PROFILE, "ost", "ccp", "distributed")
+    )
+    common = ["-p", f"scenario:={path}", "-p", "realtime:=true", *INSECURE]
+    procs.run("world", [str(BIN / "world_node"), "--ros-args", *common], env=env)
+    procs.run("agent_0", [str(BIN / "agent_node"), "--ros-args", *common, "-p", "agent_id:=0"], env=env)
+    pid, port = procs.procs["agent_0"].pid, 7401 + 250 * domain
+    end = time.monotonic() + 60
+    while not any(p == port for _, p in sockets_of(pid)) and time.monotonic() < end:
+        assert procs.procs["agent_0"].poll() is None, procs.log("agent_0")
+        time.sleep(0.2)  # (its subscriptions are made in its constructor: polled until then)
+    assert any(p == port for _, p in sockets_of(pid)), sorted(sockets_of(pid))

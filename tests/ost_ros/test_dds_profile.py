@@ -1,0 +1,94 @@
+"""The Fast DDS profile of a realtime run on this host (ost_ros/commands/dds_profile.py;
+docs/ros.md, "Transport"): the topics every robot reads are delivered by multicast, and only
+those; the lockstep and a user's own profile are left as they are."""
+
+import xml.etree.ElementTree as ET
+
+import pytest
+
+from ost_ros import protocols
+from ost_ros.cli import main as ost
+from ost_ros.commands import bringup
+from ost_ros.commands.dds_profile import realtime_profile
+from ost_ros.node import realtime as rtp
+from ost_ros.node import transport as tp
+from ost_ros.realtime.topics import everyone_reads
+
+NS = "{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}"
+
+
+def multicast_readers(text: str) -> dict[str, list[tuple[str | None, str | None]]]:
+    """Reader profile (full topic name) → its multicast locators (address, port or None)."""
+    out = {}
+    for reader in ET.fromstring(text).iter(f"{NS}data_reader"):
+        listed = reader.find(f"{NS}multicastLocatorList")
+        udp = [] if listed is None else list(listed.iter(f"{NS}udpv4"))
+        out[reader.get("profile_name")] = [(u.findtext(f"{NS}address"), u.findtext(f"{NS}port")) for u in udp]
+    return out
+
+
+@pytest.mark.parametrize("protocol", protocols.names())
+@pytest.mark.parametrize("organisation", ["distributed", "coordinator"])
+def test_every_topic_every_robot_reads_is_multicast_and_no_other(protocol, organisation):
+    # what a realtime robot subscribes to from all its peers (agent_node/realtime.py): each
+    # message kind's topic, the watermarks, the membership's notices and hellos, the bases' clock
+    # (a topic one node reads on the multicast locator would reach every participant)
+    expected = {tp.message_topic(k) for k in rtp.message_kinds(protocol, organisation)}
+    expected |= {rtp.MARKS, rtp.NEEDS, rtp.HELLOS, rtp.LOST, rtp.BASE_CLOCK}
+    assert set(everyone_reads(protocol, organisation)) == expected
+    text = realtime_profile(bringup.LOCALHOST_PROFILE.read_text(), "ost", protocol, organisation)
+    readers = multicast_readers(text)
+    assert set(readers) == {f"/ost/{t}" for t in expected}
+    # no port: the domain's well-known user multicast port (7401 + 250 x domain), so runs in
+    # other domains on this host never receive each other's samples
+    assert all(locators == [("239.255.0.1", None)] for locators in readers.values()), readers
+    # endpoint discovery by multicast too; the loopback profile's own settings are kept
+    assert ET.fromstring(text).find(f".//{NS}avoid_builtin_multicast").text == "false"
+    base = ET.fromstring(bringup.LOCALHOST_PROFILE.read_text())
+    assert len(list(ET.fromstring(text).iter())) == len(list(base.iter())) + 5 * len(expected) + 1
+
+
+def test_the_profile_names_the_runs_namespace():
+    readers = multicast_readers(
+        realtime_profile(bringup.LOCALHOST_PROFILE.read_text(), "/team2/", "ccp", "distributed")
+    )
+    assert "/team2/marks" in readers and not any(name.startswith("/ost/") for name in readers)
+
+
+def test_not_a_profiles_document_is_refused():
+    with pytest.raises(ValueError, match="no </profiles>"):
+        realtime_profile("<dds/>", "ost", "ccp", "distributed")
+
+
+@pytest.fixture
+def prepared(monkeypatch, tmp_path):
+    monkeypatch.setattr(bringup, "DOMAIN_LOCKS", tmp_path / "locks")
+    monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", str(bringup.LOCALHOST_PROFILE))
+
+    def prepare(*args: str) -> str:
+        d = tmp_path / "run"
+        small = ["--agents", "3", "--objects", "2", "--nmax", "2", "--width", "20", "--height", "10"]
+        assert ost(["up", "--prepare", "--run-dir", str(d), *small, *args]) == 0
+        return (d / "env.sh").read_text()
+
+    return prepare
+
+
+def test_a_realtime_run_loads_its_own_profile_and_the_lockstep_the_loopback_one(prepared, tmp_path):
+    env = prepared("--realtime", "--namespace", "blue")
+    profile = tmp_path / "run" / "fastdds.xml"
+    assert f"FASTRTPS_DEFAULT_PROFILES_FILE={profile.resolve()}" in env
+    assert "/blue/selection" in multicast_readers(profile.read_text())
+
+
+def test_the_lockstep_keeps_the_loopback_profile(prepared, tmp_path):
+    env = prepared()
+    assert f"FASTRTPS_DEFAULT_PROFILES_FILE={bringup.LOCALHOST_PROFILE}" in env
+    assert not (tmp_path / "run" / "fastdds.xml").exists()
+
+
+def test_a_users_own_profile_is_kept(prepared, monkeypatch, tmp_path):
+    mine = tmp_path / "mine.xml"
+    mine.write_text(bringup.LOCALHOST_PROFILE.read_text())
+    monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", str(mine))
+    assert f"FASTRTPS_DEFAULT_PROFILES_FILE={mine}" in prepared("--realtime")
