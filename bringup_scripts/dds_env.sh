@@ -5,7 +5,7 @@
 # with our profile the range is SUBNET — a subnet that is the loopback interface alone. A user who
 # sets FASTRTPS_DEFAULT_PROFILES_FILE to a profile of their own keeps full control (and the usual
 # LOCALHOST default applies).
-_ost_profile="$(cd "$(dirname "${BASH_SOURCE[0]}")/../ost_ros/dds" && pwd)/fastdds_localhost_udp.xml"
+_ost_profile="$(cd "$(dirname "${BASH_SOURCE[0]}")/../ost_ros/dds" && pwd -P)/fastdds_localhost_udp.xml"
 if [ -z "${FASTRTPS_DEFAULT_PROFILES_FILE:-}" ] || [ "$FASTRTPS_DEFAULT_PROFILES_FILE" = "$_ost_profile" ]; then
   export FASTRTPS_DEFAULT_PROFILES_FILE="$_ost_profile"
   export ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET

@@ -62,6 +62,8 @@ def _nodes(context: LaunchContext) -> list:
             output="screen",
             parameters=[str(run.params_file(p.role)), p.params],
             remappings=[tuple(r) for r in p.remaps],
+            # (a realtime run's own Fast DDS profile, if the caller loads ours: docs/ros.md)
+            additional_env=dict(run.env),
         )
         for p in run.processes
     }

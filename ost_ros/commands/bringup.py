@@ -47,7 +47,7 @@ def dds_env(environ: dict[str, str] | None = None) -> dict[str, str]:
     usual LOCALHOST default. (``bringup_scripts/dds_env.sh`` is the same for a shell.)"""
     env = dict(os.environ if environ is None else environ)
     mine = env.get("FASTRTPS_DEFAULT_PROFILES_FILE", "")
-    if not mine or mine == str(LOCALHOST_PROFILE):
+    if not mine or _ours(mine):
         env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(LOCALHOST_PROFILE)
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
     else:
@@ -264,7 +264,7 @@ def prepare(
             raise ConfigError("run_dir", f"cannot create {d} ({exc.strerror})") from None
         if (d / "world.pid").exists():
             raise ConfigError("run_dir", f"{d} holds a run (ost_down.sh it first)")
-        for name in (READY, PROGRESS, RESULT, "started"):  # a past run's: not this one's
+        for name in (READY, PROGRESS, RESULT, "started", "fastdds.xml"):  # a past run's: not this one's
             (d / name).unlink(missing_ok=True)
         made = False
     else:
@@ -301,6 +301,8 @@ def _prepare(run: Run, say: Say, owner: int, launch: bool) -> None:
             raise ConfigError("keys", f"{keys}: cannot write keys ({exc.strerror})") from None
     if not launch:
         _environment(run, owner)
+    else:
+        run.env = launch_env(run)
     # Each node role's parameters: the configuration's, with the run's files.
     stay = cfg["background"]
     common = {"scenario": scenario_path, "agents": team, "keys": keys}
@@ -378,18 +380,8 @@ def _environment(run: Run, owner: int) -> None:
     if domain < 0:
         domain, run.domain_lock = free_domain(owner)
     env["ROS_DOMAIN_ID"] = str(domain)
-    if (
-        cfg["realtime"]
-        and not cfg["hosts"]
-        and env.get("FASTRTPS_DEFAULT_PROFILES_FILE") == str(LOCALHOST_PROFILE)
-    ):
-        # what every robot reads goes out once, by multicast (docs/ros.md, "Transport")
-        from ost_ros.commands.dds_profile import write_realtime_profile
-
-        path = write_realtime_profile(
-            run.dir, LOCALHOST_PROFILE, cfg["namespace"], cfg["protocol"], cfg["coordination"]
-        )
-        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(path)
+    if "FASTRTPS_DEFAULT_PROFILES_FILE" in env:
+        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = _run_profile(run, env["FASTRTPS_DEFAULT_PROFILES_FILE"])
     if cfg["hosts"]:
         from ost_ros.commands import hosts
 
@@ -406,6 +398,34 @@ def _environment(run: Run, owner: int) -> None:
             env["ROS_DISCOVERY_SERVER"] = f"{ips[0]}:{DISCOVERY_PORT}"
             run.processes.append(_discovery_server(run, ips[0], DISCOVERY_PORT))
     run.env = env
+
+
+def _ours(profile: str) -> bool:
+    """Whether ``profile`` is our loopback profile (the same file by any path to it)."""
+    return bool(profile) and Path(profile).resolve() == LOCALHOST_PROFILE
+
+
+def _run_profile(run: Run, profile: str) -> str:
+    """The Fast DDS profile a run's processes load: a realtime run on this host with our loopback
+    profile gets its own, what every robot reads on multicast (``dds_profile``; docs/ros.md,
+    "Transport"); anything else keeps ``profile``."""
+    cfg = run.config
+    if not (cfg["realtime"] and not cfg["hosts"] and _ours(profile)):
+        return profile
+    from ost_ros.commands.dds_profile import write_realtime_profile
+
+    path = write_realtime_profile(
+        run.dir, LOCALHOST_PROFILE, cfg["namespace"], cfg["protocol"], cfg["coordination"]
+    )
+    return str(path)
+
+
+def launch_env(run: Run) -> dict[str, str]:
+    """What ``ros2 launch`` adds to its environment for a run's nodes: a realtime run's own
+    profile when the caller loads our loopback profile (else nothing: its environment as it is)."""
+    mine = os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE", "")
+    profile = _run_profile(run, mine)
+    return {} if profile == mine else {"FASTRTPS_DEFAULT_PROFILES_FILE": profile}
 
 
 def _discovery_server(run: Run, ip: str, port: int) -> Process:

@@ -37,6 +37,8 @@ def realtime_profile(base: str, namespace: str, protocol: str, organisation: str
     # announces each endpoint once to the host, not once per participant. With the readers on
     # multicast and without it, a team of 50 came up in 62-72 s against 42-50 s before; with it
     # in 36-40 s (docs/ros.md, "Transport").
+    if EDP_ANCHOR not in head:
+        raise ValueError("not the loopback profile (no </discovery_config> to add endpoint discovery to)")
     head = head.replace(EDP_ANCHOR, EDP_ANCHOR + EDP_MULTICAST, 1)
     return f"{head}  <!-- the readers of what every robot reads, on multicast (ost_ros/commands/dds_profile.py) -->\n{readers}{sep}{tail}"
 

@@ -48,16 +48,20 @@ def test_every_topic_every_robot_reads_is_multicast_and_no_other(protocol, organ
     assert len(list(ET.fromstring(text).iter())) == len(list(base.iter())) + 5 * len(expected) + 1
 
 
-def test_the_profile_names_the_runs_namespace():
+@pytest.mark.parametrize("namespace", ["team2", "/team2", "fleet/team2"])
+def test_the_profile_names_the_runs_namespace(namespace):
     readers = multicast_readers(
-        realtime_profile(bringup.LOCALHOST_PROFILE.read_text(), "/team2/", "ccp", "distributed")
+        realtime_profile(bringup.LOCALHOST_PROFILE.read_text(), namespace, "ccp", "distributed")
     )
-    assert "/team2/marks" in readers and not any(name.startswith("/ost/") for name in readers)
+    full = "/" + namespace.strip("/")
+    assert f"{full}/marks" in readers and all(name.startswith(f"{full}/") for name in readers)
 
 
-def test_not_a_profiles_document_is_refused():
+def test_not_the_loopback_profile_is_refused():
     with pytest.raises(ValueError, match="no </profiles>"):
         realtime_profile("<dds/>", "ost", "ccp", "distributed")
+    with pytest.raises(ValueError, match="no </discovery_config>"):
+        realtime_profile("<profiles></profiles>", "ost", "ccp", "distributed")
 
 
 @pytest.fixture
@@ -92,3 +96,32 @@ def test_a_users_own_profile_is_kept(prepared, monkeypatch, tmp_path):
     mine.write_text(bringup.LOCALHOST_PROFILE.read_text())
     monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", str(mine))
     assert f"FASTRTPS_DEFAULT_PROFILES_FILE={mine}" in prepared("--realtime")
+
+
+def test_our_profile_by_another_path_is_ours(prepared, monkeypatch, tmp_path):
+    # (a checkout reached through a symbolic link, as a shell's `pwd` names it)
+    link = tmp_path / "link.xml"
+    link.symlink_to(bringup.LOCALHOST_PROFILE)
+    monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", str(link))
+    env = prepared("--realtime")
+    assert f"FASTRTPS_DEFAULT_PROFILES_FILE={(tmp_path / 'run' / 'fastdds.xml').resolve()}" in env
+
+
+def test_ros2_launch_gets_the_realtime_profile_as_ost_up_does(monkeypatch, tmp_path):
+    # (launch/team.launch.py starts the nodes in the caller's environment plus run.env)
+    monkeypatch.setattr(bringup, "DOMAIN_LOCKS", tmp_path / "locks")
+    small = {"agents": "3", "objects": "2", "nmax": "2", "width": "20", "height": "10"}
+
+    def launched(**given: str) -> dict[str, str]:
+        d = tmp_path / f"run{len(list(tmp_path.glob('run*')))}"
+        cfg = bringup.RunConfig.of({**small, **given, "run_dir": str(d)})
+        return bringup.prepare(cfg, lambda _text: None, launch=True).env
+
+    monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", str(bringup.LOCALHOST_PROFILE))
+    env = launched(realtime="true")
+    assert list(env) == ["FASTRTPS_DEFAULT_PROFILES_FILE"] and env["FASTRTPS_DEFAULT_PROFILES_FILE"].endswith(
+        "fastdds.xml"
+    )
+    assert launched() == {}  # the lockstep: the caller's environment as it is
+    monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", str(tmp_path / "mine.xml"))
+    assert launched(realtime="true") == {}  # a profile of the caller's own

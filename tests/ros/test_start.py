@@ -90,7 +90,6 @@ def test_a_robot_reads_its_peers_on_the_domains_multicast_port(tmp_path, procs, 
         write_realtime_profile(tmp_path, PROFILE, "ost", "ccp", "distributed")
     )
     common = ["-p", f"scenario:={path}", "-p", "realtime:=true", *INSECURE]
-    procs.run("world", [str(BIN / "world_node"), "--ros-args", *common], env=env)
     procs.run("agent_0", [str(BIN / "agent_node"), "--ros-args", *common, "-p", "agent_id:=0"], env=env)
     pid, port = procs.procs["agent_0"].pid, 7401 + 250 * domain
     end = time.monotonic() + 60
