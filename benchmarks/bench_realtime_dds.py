@@ -14,7 +14,7 @@ the run and of the bring-up, and the CPU seconds of every process (the children'
 lockstep over DDS (``ost up`` without --realtime) is measured on the same scenario for reference
 (up to --lockstep-max agents: at N=50 it takes minutes).
 --large adds N=50, M=200 at the --large-rtf factors (on two cores at rtf 100: every object, the
-makespan +49–52 % over ``ost sim``, 214–217 s with bring-up — docs/realtime.md).
+makespan +49–74 % over ``ost sim`` in three runs, 214–240 s with bring-up — docs/realtime.md).
 
 Writes ``realtime_dds.md`` (a markdown table) into --out (default /tmp/ost_bench_realtime_dds).
 """
