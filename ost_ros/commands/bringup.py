@@ -34,6 +34,7 @@ LOCALHOST_PROFILE = DDS_PROFILES / "fastdds_localhost_udp.xml"
 HOSTS_PROFILE = DDS_PROFILES / "fastdds_hosts_udp.xml"
 DOMAIN_LOCKS = Path(tempfile.gettempdir()) / "ost_domain_locks"
 RUN_FILE, ENV_FILE, PROCESSES = "run.json", "env.sh", "processes"
+PROFILE_FILE = "fastdds.xml"  # a realtime run's own Fast DDS profile (dds_profile)
 READY, PROGRESS, RESULT = "ready", "progress", "result.json"
 DISCOVERY_PORT = 11811
 Say = Callable[[str], None]
@@ -264,7 +265,7 @@ def prepare(
             raise ConfigError("run_dir", f"cannot create {d} ({exc.strerror})") from None
         if (d / "world.pid").exists():
             raise ConfigError("run_dir", f"{d} holds a run (ost_down.sh it first)")
-        for name in (READY, PROGRESS, RESULT, "started", "fastdds.xml"):  # a past run's: not this one's
+        for name in (READY, PROGRESS, RESULT, "started", PROFILE_FILE):  # a past run's: not this one's
             (d / name).unlink(missing_ok=True)
         made = False
     else:
@@ -414,9 +415,8 @@ def _run_profile(run: Run, profile: str) -> str:
         return profile
     from ost_ros.commands.dds_profile import write_realtime_profile
 
-    path = write_realtime_profile(
-        run.dir, LOCALHOST_PROFILE, cfg["namespace"], cfg["protocol"], cfg["coordination"]
-    )
+    path = run.file(PROFILE_FILE)
+    write_realtime_profile(path, LOCALHOST_PROFILE, cfg["namespace"], cfg["protocol"], cfg["coordination"])
     return str(path)
 
 

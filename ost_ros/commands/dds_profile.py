@@ -15,7 +15,6 @@ from ost_ros.realtime.topics import everyone_reads
 # The domain's user multicast locator: no port given, so Fast DDS takes the well-known one
 # (7401 + 250 x domain) and runs in other domains on this host never hear each other.
 GROUP = "239.255.0.1"
-FILE = "fastdds.xml"
 EDP_ANCHOR = "</discovery_config>\n"
 EDP_MULTICAST = "        <avoid_builtin_multicast>false</avoid_builtin_multicast>\n"
 
@@ -43,10 +42,6 @@ def realtime_profile(base: str, namespace: str, protocol: str, organisation: str
     return f"{head}  <!-- the readers of what every robot reads, on multicast (ost_ros/commands/dds_profile.py) -->\n{readers}{sep}{tail}"
 
 
-def write_realtime_profile(
-    directory: Path, base: Path, namespace: str, protocol: str, organisation: str
-) -> Path:
-    """The run's profile as ``directory/fastdds.xml``; its path."""
-    path = directory / FILE
+def write_realtime_profile(path: Path, base: Path, namespace: str, protocol: str, organisation: str) -> None:
+    """The run's profile (:func:`realtime_profile` of the file ``base``) written to ``path``."""
     path.write_text(realtime_profile(base.read_text(), namespace, protocol, organisation))
-    return path
