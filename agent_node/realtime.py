@@ -41,6 +41,7 @@ from ost_msgs_py.auth import WORLD
 from ost_ros.lockstep.messages import AgentReport, Ready, RunEnd, Sample, ScheduleEntry
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
+from ost_ros.node.bundles import BUNDLE_TYPE, Unbundler, receivers_for
 from ost_ros.node.params import declare_agent
 from ost_ros.node.plumbing import Alive, renew_endpoints
 from ost_ros.node.signing import node_auth
@@ -150,22 +151,44 @@ class RealtimeAgentNode(Node):
         def known(m) -> bool:  # (a copy it has: the world publishes a failed robot's messages again)
             return not_for_me(m) or self.rt.batches.seen(m.sender, m.seq)
 
+        # fanout:=direct: each peer's messages, watermarks and needs on their topics; monitor:
+        # the robot's own go to the monitor alone, and the peers' come in the monitor's bundles
+        # (ost_ros.node.bundles), each checked as if it had come on its topic
+        direct = self.p["fanout"] == "direct"
+        kinds = rtp.message_kinds(self.p["protocol"], self.p["coordination"])
         self.kind_pubs: dict[type, Any] = {}
         self.kind_subs = []
-        for kind in rtp.message_kinds(self.p["protocol"], self.p["coordination"]):
+        for kind in kinds:
             topic = tp.message_topic(kind)
             self.kind_pubs[kind] = self.create_publisher(
                 wire.ros_type(kind), topic, q, event_callbacks=tp.no_events_pub()
             )
-            self.kind_subs.append(tp.subscribe(self, kind, topic, self.on_sample, q, g, th, skip=known))
+            if direct:
+                self.kind_subs.append(tp.subscribe(self, kind, topic, self.on_sample, q, g, th, skip=known))
         self.pub_marks = self.create_publisher(
             wire.ros_type(Mark), rtp.MARKS, q, event_callbacks=tp.no_events_pub()
         )
-        self.sub_marks = tp.subscribe(self, Mark, rtp.MARKS, self.take, q, g, th, skip=not_for_me)
         self.pub_needs = self.create_publisher(
             wire.ros_type(Need), rtp.NEEDS, q, event_callbacks=tp.no_events_pub()
         )
-        self.sub_needs = tp.subscribe(self, Need, rtp.NEEDS, self.take, q, g, th, skip=not_for_me)
+        self.sub_marks = self.sub_needs = self.sub_bundles = None
+        if direct:
+            self.sub_marks = tp.subscribe(self, Mark, rtp.MARKS, self.take, q, g, th, skip=not_for_me)
+            self.sub_needs = tp.subscribe(self, Need, rtp.NEEDS, self.take, q, g, th, skip=not_for_me)
+        else:
+            receivers = receivers_for(
+                self,
+                rtp.relayed(self.p["protocol"], self.p["coordination"]),
+                [*(self.on_sample for _ in kinds), self.take, self.take],
+                [*(known for _ in kinds), not_for_me, not_for_me],
+                g,
+                th,
+            )
+            unbundle = Unbundler(receivers, self.run, g, th)
+            self.sub_bundles = self.create_subscription(
+                BUNDLE_TYPE, rtp.BUNDLES, unbundle, q, raw=True, event_callbacks=tp.no_events_sub()
+            )
+            unbundle.topic = self.sub_bundles.topic_name
         self.sub_lost = tp.subscribe(
             self, Lost, rtp.LOST, self.take, tp.LATCHED_ALL_QOS, g, th, skip=other_run
         )
@@ -201,6 +224,7 @@ class RealtimeAgentNode(Node):
         "sub_marks",
         "pub_needs",
         "sub_needs",
+        "sub_bundles",
         "sub_lost",
         "pub_hellos",
         "sub_hellos",
@@ -217,15 +241,21 @@ class RealtimeAgentNode(Node):
         be dead by then): beside the world's endpoints and the monitor's, each peer, once
         matched, says everything again to it (:meth:`readers_back`)."""
         n = 1 if self.me in self.joining else len(self.ids) - len(self.joining)
+        # (fanout:=monitor: its own are read by the monitor alone, the peers' come in bundles)
+        peers = n + 1 if self.sub_bundles is None else 1
         counts: list[tuple[Any, str, int]] = [
-            *((pub, f"{tp.message_topic(kind)} readers", n + 1) for kind, pub in self.kind_pubs.items()),
+            *((pub, f"{tp.message_topic(kind)} readers", peers) for kind, pub in self.kind_pubs.items()),
             *((sub, f"{sub.topic_name} writers", n + 1) for sub in self.kind_subs),
-            (self.pub_marks, "marks readers", n + 1),
-            (self.sub_marks, "marks writers", n + 1),
+            (self.pub_marks, "marks readers", peers),
             (self.pub_hellos, "hellos readers", n),
             (self.sub_hellos, "hellos writers", n),
-            (self.pub_needs, "needs readers", n),
-            (self.sub_needs, "needs writers", n),
+            (self.pub_needs, "needs readers", n if self.sub_bundles is None else 1),
+        ]
+        if self.sub_bundles is None:
+            counts += [(self.sub_marks, "marks writers", n + 1), (self.sub_needs, "needs writers", n)]
+        else:
+            counts.append((self.sub_bundles, "bundles", 1))
+        counts += [
             (self.sub_clock, "base_clock", 1),
             (self.sub_base, "base", 1),
             (self.sub_lost, "lost", 1),

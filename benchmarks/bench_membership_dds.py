@@ -199,7 +199,7 @@ def splits(a: argparse.Namespace) -> int:
     scenario = generate(a, out)
     k = max(1, round(0.6 * a.agents))
     groups = a.groups or f"{','.join(map(str, range(k)))}/{','.join(map(str, range(k, a.agents)))}"
-    hosts = ["--hosts", "3"]
+    hosts = ["--hosts", "3", "--fanout", "direct"]  # (a split cuts robots apart, not the monitor)
     rows = []
     for n in range(a.runs):
         base = one(scenario, a.rtf, None, a.at, hosts)

@@ -2,8 +2,8 @@
 
     flock /tmp/ost-dds.lock .venv/bin/python benchmarks/bench_realtime_dds.py \\
         [--rtf 100,300,1000,3000] [--agents 10] [--objects 20] [--width 500] [--height 200]
-        [--seeds 1] [--repeat 5] [--clock-hz HZ] [--membership node|world] [--large] [--large-rtf 20,100]
-        [--out DIR]
+        [--seeds 1] [--repeat 5] [--clock-hz HZ] [--membership node|world] [--fanout direct,monitor]
+        [--large] [--large-rtf 20,100] [--out DIR]
 
 For each real-time factor (sim steps per wall second) it starts one world node and one process
 per robot with ``ost up --realtime --rtf R`` and reads the run's ``result.json``: every object
@@ -13,8 +13,11 @@ batch of messages was processed; ≤ 1 means the network keeps up with the pace)
 the run and of the bring-up, and the CPU seconds of every process (the children's rusage). The
 lockstep over DDS (``ost up`` without --realtime) is measured on the same scenario for reference
 (up to --lockstep-max agents: at N=50 it takes minutes).
---large adds N=50, M=200 at the --large-rtf factors (on two cores at rtf 100: every object, the
-makespan +49–74 % over ``ost sim`` in three runs, 214–240 s with bring-up — docs/realtime.md).
+--large adds N=50, M=200 at the --large-rtf factors (on two cores at rtf 100, docs/realtime.md:
+with ``--fanout direct`` every object, the makespan +49–74 % over ``ost sim`` in three runs,
+214–240 s with bring-up; with ``--fanout monitor`` see "Fan-out through the monitor").
+--fanout takes a comma-separated list: each real-time factor's runs alternate between them (an
+A/B in one run of the script), each row labelled with its fan-out.
 
 Writes ``realtime_dds.md`` (a markdown table) into --out (default /tmp/ost_bench_realtime_dds).
 """
@@ -55,6 +58,7 @@ def run_up(
     clock_hz: float | None = None,
     size: tuple[int, int] = (500, 200),
     membership: str | None = None,
+    fanout: str | None = None,
 ) -> dict:
     """One ``ost up`` run; its result with the wall and CPU seconds it took."""
     d = Path(tempfile.mkdtemp(prefix="ost-bench-rt-"))
@@ -67,6 +71,8 @@ def run_up(
             cmd += ["--clock-hz", f"{clock_hz:g}"]
         if membership is not None:
             cmd += ["--membership", membership]
+        if fanout is not None:
+            cmd += ["--fanout", fanout]
     cpu0, t0 = children_cpu(), time.monotonic()
     proc = subprocess.run(cmd, capture_output=True, text=True)
     wall, cpu = time.monotonic() - t0, children_cpu() - cpu0
@@ -130,8 +136,18 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="who runs the monitor (ost up's default)",
     )
+    ap.add_argument(
+        "--fanout",
+        default=None,
+        help="how robots' messages reach their peers: direct, monitor, or both comma-separated "
+        "(alternating; ost up's default)",
+    )
     ap.add_argument("--out", type=Path, default=Path("/tmp/ost_bench_realtime_dds"))
     a = ap.parse_args(argv)
+    fanouts: list[str | None] = [None] if a.fanout is None else a.fanout.split(",")
+    if not all(f in ("direct", "monitor") for f in fanouts):
+        print(f"bench_realtime_dds: error: --fanout: {a.fanout!r} is not a list of direct, monitor", file=sys.stderr)  # fmt: skip
+        return 2
     try:
         rtfs = [float(x) for x in a.rtf.split(",")]
         large = [float(x) for x in a.large_rtf.split(",")]
@@ -161,22 +177,28 @@ def main(argv: list[str] | None = None) -> int:
                 ref = sim_makespan(lock["_scenario"])
                 lines.append(row("lockstep", lock, ref))
                 print(lines[-1], flush=True)
-            lags: dict[float, list[float]] = {}
+            lags: dict[str | None, dict[float, list[float]]] = {f: {} for f in fanouts}
             for r in rs:
-                spans = []
+                spans: dict[str | None, list[float]] = {f: [] for f in fanouts}
                 for _ in range(a.repeat):
-                    res = run_up(n, m, seed, r, nmax, a.clock_hz, size, a.membership)
-                    ref = ref if ref is not None else sim_makespan(res["_scenario"])
-                    spans.append(res["makespan"])
-                    lags.setdefault(r, []).append(max(res.get("lag", {}).values(), default=0.0))
-                    lines.append(row(f"realtime rtf {r:g}", res, ref))
-                    print(lines[-1], flush=True)
+                    for f in fanouts:
+                        res = run_up(n, m, seed, r, nmax, a.clock_hz, size, a.membership, f)
+                        ref = ref if ref is not None else sim_makespan(res["_scenario"])
+                        spans[f].append(res["makespan"])
+                        lags[f].setdefault(r, []).append(max(res.get("lag", {}).values(), default=0.0))
+                        how = f", fanout {f}" if f else ""
+                        lines.append(row(f"realtime rtf {r:g}{how}", res, ref))
+                        print(lines[-1], flush=True)
                 if a.repeat > 1 and ref is not None:
-                    med = statistics.median(spans)
-                    lines.append(f"| rtf {r:g}: median of {a.repeat} | | | {med:.0f} | {100 * (med / ref - 1):+.1f} % | | | | |")  # fmt: skip
-                    print(lines[-1], flush=True)
-            lines += ["", *keeps_up(lags), ""]
-            print("\n".join(lines[-3:-1]), flush=True)
+                    for f in fanouts:
+                        med = statistics.median(spans[f])
+                        how = f", fanout {f}" if f else ""
+                        lines.append(f"| rtf {r:g}{how}: median of {a.repeat} | | | {med:.0f} | {100 * (med / ref - 1):+.1f} % | | | | |")  # fmt: skip
+                        print(lines[-1], flush=True)
+            for f in fanouts:
+                how = [f"fanout {f}:"] if f else []
+                lines += ["", *how, *keeps_up(lags[f]), ""]
+                print("\n".join(lines[-4:-1]), flush=True)
     a.out.mkdir(parents=True, exist_ok=True)
     (a.out / "realtime_dds.md").write_text("\n".join(lines) + "\n")
     print(f"wrote {a.out / 'realtime_dds.md'}")

@@ -194,6 +194,10 @@ def _settings() -> tuple[Setting, ...]:
           "membership_node process of its own, started beside the world; the world has no "
           "membership role) or world (the role in the world's process)", "ROS", W,
           choices=("node", "world")),
+        S("fanout", "monitor", "realtime runs: how a robot's messages reach its peers — monitor "
+          "(to the membership monitor alone, which passes them on in bundles: N + N deliveries "
+          "when every robot speaks) or direct (each sample to every peer: N x N)", "ROS", WA,
+          choices=("monitor", "direct")),
         S("spawn", "fork", "how ost up / ost_up.sh start the robots on this host: fork (the robot "
           "node's code imported once, a process forked per robot: a team of 50 comes up sooner) or "
           "exec (each from its executable, as on robots)", "ROS", choices=("fork", "exec"),
@@ -432,6 +436,12 @@ class RunConfig:
                 raise ConfigError(
                     "split", f"needs --hosts {need} or more: the world's host and one per group"
                 )
+        if self["split"] and self["fanout"] == "monitor":
+            raise ConfigError(
+                "split",
+                "cuts robots apart, not the monitor: with --fanout monitor their messages "
+                "would go round it (use --fanout direct)",
+            )
         if self["hosts"]:
             if not is_root:
                 raise ConfigError("hosts", "simulated hosts need root (network namespaces)")
@@ -465,7 +475,9 @@ class RunConfig:
                 if self[name]:
                     raise ConfigError(name, "is for the lockstep run, not with --realtime")
             return
-        named = name_given(self.given, ("rtf", "speed_jitter", "stall", "noise_seed", "clock_hz", "join"))
+        named = name_given(
+            self.given, ("rtf", "speed_jitter", "stall", "noise_seed", "clock_hz", "join", "fanout")
+        )
         if named:
             raise ConfigError(named, "needs --realtime")
 

@@ -42,6 +42,7 @@ from ost_msgs_py import auth, wire
 from ost_ros.lockstep.messages import RunEnd, Sample
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
+from ost_ros.node.bundles import BUNDLE_TYPE, Bundler
 from ost_ros.node.params import ParameterError, declare_role, node_scenario
 from ost_ros.node.plumbing import Liveliness
 from ost_ros.node.run import run_node
@@ -120,7 +121,8 @@ class Membership:
         self.throttle = tp.Throttle(node.get_logger())
         self.monitor = Monitor(ids)
         self.heard = {i: Heard() for i in ids}
-        self.originals: dict[int, list[tuple[Any, bytes]]] = {i: [] for i in ids}
+        # each robot's messages as it sealed them: (its kind's number, the writer, the bytes)
+        self.originals: dict[int, list[tuple[int, Any, bytes]]] = {i: [] for i in ids}
         self.waiting: dict[int, Declaration] = {}  # declared, its base's facts to come
         self.started = self.ended = False
         self.failure_timeout = float(p["failure_timeout"])
@@ -138,16 +140,30 @@ class Membership:
         self.kind_subs, self.kind_pubs = [], []
         self.readers = 0  # readers of its message writers at the last look (a robot that joins)
         self.looked = 0.0
-        for kind in rtp.message_kinds(p["protocol"], p["coordination"]):
+        # fanout:=monitor: what robots say goes to the monitor alone, which passes it on in
+        # bundles (ost_ros.node.bundles); the kinds numbered as rtp.relayed lists them
+        self.bundler: Bundler | None = None
+        if p["fanout"] == "monitor":
+            pub_bundles = node.create_publisher(BUNDLE_TYPE, rtp.BUNDLES, q, event_callbacks=quiet())
+            self.bundler = Bundler(node, pub_bundles, self.run, g)
+        for index, kind in enumerate(rtp.message_kinds(p["protocol"], p["coordination"])):
             topic = tp.message_topic(kind)
             pub = node.create_publisher(wire.ros_type(kind), topic, q, event_callbacks=quiet())
             self.kind_pubs.append(pub)
-            on = functools.partial(self.on_sample, pub)
+            on = functools.partial(self.on_sample, index, pub)
             self.kind_subs.append(tp.subscribe(node, kind, topic, on, q, g, th, keep_bytes=True, skip=known))
+        self.mark_kind = len(self.kind_pubs)  # (marks, then needs: after the messages)
         self.pub_lost = node.create_publisher(wire.ros_type(Lost), rtp.LOST, tp.LATCHED_ALL_QOS)
         self.pub_marks = node.create_publisher(wire.ros_type(Mark), rtp.MARKS, q, event_callbacks=quiet())
-        self.sub_marks = tp.subscribe(node, Mark, rtp.MARKS, self.on_mark, q, g, th, skip=other_run)
-        self.sub_needs = tp.subscribe(node, Need, rtp.NEEDS, self.on_mark, q, g, th, skip=other_run)
+        on_mark = functools.partial(self.on_mark, self.mark_kind)
+        on_need = functools.partial(self.on_mark, self.mark_kind + 1)
+        keep = self.bundler is not None
+        self.sub_marks = tp.subscribe(
+            node, Mark, rtp.MARKS, on_mark, q, g, th, keep_bytes=keep, skip=other_run
+        )
+        self.sub_needs = tp.subscribe(
+            node, Need, rtp.NEEDS, on_need, q, g, th, keep_bytes=keep, skip=other_run
+        )
         self.sub_hellos = tp.subscribe(node, Hello, rtp.HELLOS, self.on_hello, q, g, th, skip=other_run)
         # Liveliness: a robot's lease lapsing makes it a suspect; silent on, it is declared out.
         self.alive = Liveliness(
@@ -166,6 +182,8 @@ class Membership:
             out.append(f"liveliness from {unseen[:8]}")
         if self.pub_lost.get_subscription_count() < n:
             out.append("lost readers")
+        if self.bundler is not None and self.bundler.pub.get_subscription_count() < n:
+            out.append(f"bundles readers {self.bundler.pub.get_subscription_count()}/{n}")
         return out
 
     # ------------------------------------------------------------------ what robots say
@@ -181,13 +199,15 @@ class Membership:
             for a in sorted(self.absent):
                 self.declare(a)
 
-    def on_sample(self, pub: Any, s: Sample, data: bytes) -> None:
+    def on_sample(self, kind: int, pub: Any, s: Sample, data: bytes) -> None:
         sender = s.message.sender
         if sender not in self.heard or not self.heard[sender].message(s.seq, s.watermark):
             return
         self.start()
         self.on_heard()
-        self.originals[sender].append((pub, data))
+        self.originals[sender].append((kind, pub, data))
+        if self.bundler is not None:
+            self.bundler.add(kind, data)
         self.alive.heard_from(sender)
         if getattr(s.message, "SHARED", True):
             self.monitor.wanted.add(s.step)  # every member will need that batch
@@ -200,9 +220,11 @@ class Membership:
             self.monitor.lives[b.agent] = max(self.monitor.lives.get(b.agent, 0), b.incarnation)
         self.heard_from(sender)
 
-    def on_mark(self, m: Mark | Need) -> None:
+    def on_mark(self, kind: int, m: Mark | Need, data: bytes = b"") -> None:
         if m.sender not in self.heard:
             return  # (its own)
+        if self.bundler is not None:
+            self.bundler.add(kind, data)
         self.start()
         self.on_heard()
         self.heard[m.sender].marks.append((m.watermark, m.seq))
@@ -234,9 +256,28 @@ class Membership:
         self.monitor.note(agent, w, s)
         self.announce(self.monitor.tick(math.inf))
 
+    def end(self) -> None:
+        """The run is over: nobody is declared from now on; what was passed on, said."""
+        self.ended = True
+        if self.bundler is not None:
+            self.bundler.flush()
+            b = self.bundler
+            self.node.get_logger().info(f"fanout: passed on {b.messages} messages in {b.bundles} bundles")
+
     def announce(self, marks: list[Mark]) -> None:
         for m in marks:
-            self.guard.publish(self.pub_marks, m, run=self.run)
+            if self.bundler is None:
+                self.guard.publish(self.pub_marks, m, run=self.run)
+            else:
+                self.bundler.add(self.mark_kind, self.guard.encode(self.pub_marks, m, run=self.run))
+
+    def relay(self, originals: list[tuple[int, Any, bytes]]) -> None:
+        """Say robots' messages again, as they sealed them: on their topics, or in bundles."""
+        for kind, pub, data in originals:
+            if self.bundler is None:
+                self.guard.relay(pub, data)
+            else:
+                self.bundler.add(kind, data)
 
     # ------------------------------------------------------------------ silence
 
@@ -251,13 +292,20 @@ class Membership:
         new reader, and what was published before never reaches it; the live robots say their
         own again (``RealtimeAgentNode.readers_back``), and the monitor relays the originals of
         the robots out or dead, which nobody else would."""
-        readers = sum(p.get_subscription_count() for p in self.kind_pubs)
+        pubs = self.kind_pubs if self.bundler is None else [self.bundler.pub]
+        readers = sum(p.get_subscription_count() for p in pubs)
         back, self.readers = readers > self.readers, readers
         if not back or not self.started:
             return
-        for a in sorted(set(self.monitor.out) | self.monitor.dead):
-            for pub, data in self.originals[a]:
-                self.guard.relay(pub, data)
+        if self.bundler is None:
+            for a in sorted(set(self.monitor.out) | self.monitor.dead):
+                self.relay(self.originals[a])
+            return
+        # fanout:=monitor: the robots' own topics have one reader, the monitor, so nobody but
+        # the monitor can say again what a new reader missed: every message (the watermarks a
+        # new reader lacks it asks for: a Need, which the members answer)
+        for a in self.ids:
+            self.relay(self.originals[a])
 
     def declare(self, agent: int) -> None:
         """The robot is silent too long: declared out with a notice stamped one above the last
@@ -297,8 +345,7 @@ class Membership:
             serial=d.serial,
         )
         self.guard.publish(self.pub_lost, notice, run=self.run)
-        for pub, data in self.originals[d.agent]:
-            self.guard.relay(pub, data)  # as it was sealed by the robot itself
+        self.relay(self.originals[d.agent])  # as it was sealed by the robot itself
         why = (
             "joins later"
             if d.agent in self.absent and d.life == 0
@@ -347,8 +394,8 @@ class MembershipNode(Node):
         self.role.check_suspects(time.monotonic())
 
     def on_end(self, end: RunEnd) -> None:
-        if end.run == self.role.run:
-            self.role.ended = True
+        if end.run == self.role.run and not self.done:
+            self.role.end()
             self.done = True
 
 

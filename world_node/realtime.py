@@ -633,6 +633,8 @@ class RealtimeWorldNode(Node):
             self.world.failed.setdefault(agent, t)
         self.completed = self.world.done and not self.world.undeliverable()
         self.guard.publish(self.pub_end, RunEnd(self.world.t, self.world.t, self.completed, run=self.run))
+        if self.membership is not None:
+            self.membership.end()
         self.write_progress(self.world.end, last=True)
         self.get_logger().info(f"run over at sim time {self.world.end:g}; collecting reports")
         if not self.live:

@@ -416,7 +416,9 @@ def _run_profile(run: Run, profile: str) -> str:
     from ost_ros.commands.dds_profile import write_realtime_profile
 
     path = run.file(PROFILE_FILE)
-    write_realtime_profile(path, LOCALHOST_PROFILE, cfg["namespace"], cfg["protocol"], cfg["coordination"])
+    write_realtime_profile(
+        path, LOCALHOST_PROFILE, cfg["namespace"], cfg["protocol"], cfg["coordination"], cfg["fanout"]
+    )
     return str(path)
 
 

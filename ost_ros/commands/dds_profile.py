@@ -19,15 +19,16 @@ EDP_ANCHOR = "</discovery_config>\n"
 EDP_MULTICAST = "        <avoid_builtin_multicast>false</avoid_builtin_multicast>\n"
 
 
-def realtime_profile(base: str, namespace: str, protocol: str, organisation: str) -> str:
-    """``base`` (a profiles document) with the multicast reader profiles of a realtime run."""
+def realtime_profile(base: str, namespace: str, protocol: str, organisation: str, fanout: str) -> str:
+    """``base`` (a profiles document) with the multicast reader profiles of a realtime run (with
+    ``fanout:=monitor`` the robots read the monitor's bundles, not each other's topics)."""
     ns = "/" + namespace.strip("/") if namespace.strip("/") else ""
     readers = "".join(
         f'  <data_reader profile_name="{ns}/{topic}">\n'
         f"    <multicastLocatorList><locator><udpv4><address>{GROUP}</address></udpv4></locator>"
         "</multicastLocatorList>\n"
         "  </data_reader>\n"
-        for topic in everyone_reads(protocol, organisation)
+        for topic in everyone_reads(protocol, organisation, fanout)
     )
     head, sep, tail = base.rpartition("</profiles>")
     if not sep:
@@ -42,6 +43,8 @@ def realtime_profile(base: str, namespace: str, protocol: str, organisation: str
     return f"{head}  <!-- the readers of what every robot reads, on multicast (ost_ros/commands/dds_profile.py) -->\n{readers}{sep}{tail}"
 
 
-def write_realtime_profile(path: Path, base: Path, namespace: str, protocol: str, organisation: str) -> None:
+def write_realtime_profile(
+    path: Path, base: Path, namespace: str, protocol: str, organisation: str, fanout: str
+) -> None:
     """The run's profile (:func:`realtime_profile` of the file ``base``) written to ``path``."""
-    path.write_text(realtime_profile(base.read_text(), namespace, protocol, organisation))
+    path.write_text(realtime_profile(base.read_text(), namespace, protocol, organisation, fanout))

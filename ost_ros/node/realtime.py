@@ -9,6 +9,7 @@ from ost_ros.realtime.messages import Lost
 from ost_ros.realtime.topics import (
     BASE_CLOCK,
     BASE_GOALS,
+    BUNDLES,
     DIGESTS,
     HELLOS,
     LOST,
@@ -17,11 +18,13 @@ from ost_ros.realtime.topics import (
     STOP_BASES,
     STOPPED_BASES,
     message_kinds,
+    relayed,
 )
 
 __all__ = [
     "BASE_CLOCK",
     "BASE_GOALS",
+    "BUNDLES",
     "DIGESTS",
     "HELLOS",
     "LOST",
@@ -31,6 +34,7 @@ __all__ = [
     "STOP_BASES",
     "Lost",
     "message_kinds",
+    "relayed",
 ]
 
 

@@ -6,7 +6,7 @@ Fast DDS profile of a run, :mod:`ost_ros.commands.dds_profile`). The nodes impor
 from __future__ import annotations
 
 from ost_ros import protocols
-from ost_ros.realtime.messages import Back, RtStatus, ScheduleUpdate, Status
+from ost_ros.realtime.messages import Back, Mark, Need, RtStatus, ScheduleUpdate, Status
 
 MARKS = "marks"  # agents → agents (and the world): watermarks
 NEEDS = "needs"  # agents → agents: a batch waits for watermarks
@@ -17,6 +17,9 @@ STOPPED_BASES = "stopped_bases"  # world → membership: stopped, and the facts 
 DIGESTS = "digests"  # agents → world (and anyone): coordination digests
 BASE_CLOCK = "base_clock"  # world → agents: sim time, and how many events each base has sent
 BASE_GOALS = "base_goals"  # agents → world: each robot's goals for its own base
+BUNDLES = "bundles"  # membership → agents (fanout:=monitor): the robots' messages, passed on
+
+FANOUTS = ("direct", "monitor")  # how a robot's messages reach its peers (the fanout parameter)
 
 
 def message_kinds(protocol: str, organisation: str = "distributed") -> tuple[type, ...]:
@@ -31,8 +34,19 @@ def message_kinds(protocol: str, organisation: str = "distributed") -> tuple[typ
     return (*kinds, RtStatus, Back)
 
 
-def everyone_reads(protocol: str, organisation: str = "distributed") -> tuple[str, ...]:
+def relayed(protocol: str, organisation: str = "distributed") -> tuple[tuple[str, type], ...]:
+    """(topic, kind) of what the monitor passes on with ``fanout:=monitor``, in the order a
+    bundle's ``kinds`` number them: the robot-to-robot messages, the watermarks, the needs."""
+    kinds = tuple((str(getattr(k, "TYPE")), k) for k in message_kinds(protocol, organisation))  # noqa: B009
+    return (*kinds, (MARKS, Mark), (NEEDS, Need))
+
+
+def everyone_reads(protocol: str, organisation: str, fanout: str) -> tuple[str, ...]:
     """The topics every robot of a realtime run reads (and the membership monitor): each robot's
-    messages, the watermarks, the membership's notices and hellos, the bases' clock."""
+    messages and watermarks — or, with ``fanout:=monitor``, the monitor's bundles of them (each
+    robot's own topics then have one reader, the monitor) — the membership's notices and hellos,
+    the bases' clock."""
+    if fanout == "monitor":
+        return tuple(sorted({BUNDLES, HELLOS, LOST, BASE_CLOCK}))
     kinds = {str(getattr(k, "TYPE")) for k in message_kinds(protocol, organisation)}  # noqa: B009
     return tuple(sorted(kinds | {MARKS, NEEDS, HELLOS, LOST, BASE_CLOCK}))

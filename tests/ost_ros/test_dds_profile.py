@@ -29,14 +29,20 @@ def multicast_readers(text: str) -> dict[str, list[tuple[str | None, str | None]
 
 @pytest.mark.parametrize("protocol", protocols.names())
 @pytest.mark.parametrize("organisation", ["distributed", "coordinator"])
-def test_every_topic_every_robot_reads_is_multicast_and_no_other(protocol, organisation):
+@pytest.mark.parametrize("fanout", ["direct", "monitor"])
+def test_every_topic_every_robot_reads_is_multicast_and_no_other(protocol, organisation, fanout):
     # what a realtime robot subscribes to from all its peers (agent_node/realtime.py): each
-    # message kind's topic, the watermarks, the membership's notices and hellos, the bases' clock
-    # (a topic one node reads on the multicast locator would reach every participant)
-    expected = {tp.message_topic(k) for k in rtp.message_kinds(protocol, organisation)}
-    expected |= {rtp.MARKS, rtp.NEEDS, rtp.HELLOS, rtp.LOST, rtp.BASE_CLOCK}
-    assert set(everyone_reads(protocol, organisation)) == expected
-    text = realtime_profile(bringup.LOCALHOST_PROFILE.read_text(), "ost", protocol, organisation)
+    # message kind's topic and the watermarks — with fanout:=monitor the monitor's bundles of
+    # them instead —, the membership's notices and hellos, the bases' clock (a topic one node
+    # reads on the multicast locator would reach every participant)
+    if fanout == "direct":
+        expected = {tp.message_topic(k) for k in rtp.message_kinds(protocol, organisation)}
+        expected |= {rtp.MARKS, rtp.NEEDS}
+    else:
+        expected = {rtp.BUNDLES}
+    expected |= {rtp.HELLOS, rtp.LOST, rtp.BASE_CLOCK}
+    assert set(everyone_reads(protocol, organisation, fanout)) == expected
+    text = realtime_profile(bringup.LOCALHOST_PROFILE.read_text(), "ost", protocol, organisation, fanout)
     readers = multicast_readers(text)
     assert set(readers) == {f"/ost/{t}" for t in expected}
     # no port: the domain's well-known user multicast port (7401 + 250 x domain), so runs in
@@ -51,7 +57,7 @@ def test_every_topic_every_robot_reads_is_multicast_and_no_other(protocol, organ
 @pytest.mark.parametrize("namespace", ["team2", "/team2", "fleet/team2"])
 def test_the_profile_names_the_runs_namespace(namespace):
     readers = multicast_readers(
-        realtime_profile(bringup.LOCALHOST_PROFILE.read_text(), namespace, "ccp", "distributed")
+        realtime_profile(bringup.LOCALHOST_PROFILE.read_text(), namespace, "ccp", "distributed", "direct")
     )
     full = "/" + namespace.strip("/")
     assert f"{full}/marks" in readers and all(name.startswith(f"{full}/") for name in readers)
@@ -59,9 +65,9 @@ def test_the_profile_names_the_runs_namespace(namespace):
 
 def test_not_the_loopback_profile_is_refused():
     with pytest.raises(ValueError, match="no </profiles>"):
-        realtime_profile("<dds/>", "ost", "ccp", "distributed")
+        realtime_profile("<dds/>", "ost", "ccp", "distributed", "monitor")
     with pytest.raises(ValueError, match="no </discovery_config>"):
-        realtime_profile("<profiles></profiles>", "ost", "ccp", "distributed")
+        realtime_profile("<profiles></profiles>", "ost", "ccp", "distributed", "monitor")
 
 
 @pytest.fixture
@@ -78,11 +84,13 @@ def prepared(monkeypatch, tmp_path):
     return prepare
 
 
-def test_a_realtime_run_loads_its_own_profile_and_the_lockstep_the_loopback_one(prepared, tmp_path):
-    env = prepared("--realtime", "--namespace", "blue")
+@pytest.mark.parametrize("fanout", [(), ("--fanout", "direct")], ids=["monitor (default)", "direct"])
+def test_a_realtime_run_loads_its_own_profile_and_the_lockstep_the_loopback_one(prepared, tmp_path, fanout):
+    env = prepared("--realtime", "--namespace", "blue", *fanout)
     profile = tmp_path / "run" / "fastdds.xml"
     assert f"FASTRTPS_DEFAULT_PROFILES_FILE={profile.resolve()}" in env
-    assert "/blue/selection" in multicast_readers(profile.read_text())
+    readers = multicast_readers(profile.read_text())
+    assert ("/blue/selection" in readers) == bool(fanout) and ("/blue/bundles" in readers) != bool(fanout)
 
 
 def test_the_lockstep_keeps_the_loopback_profile(prepared, tmp_path):

@@ -98,6 +98,10 @@ def test_a_team_replaces_the_scenarios(tmp_path):
         (["--agents", "4", "--objects", "4", "--realtime", "--split", "0,1/1,2:10:5"],
          "--split: a robot in two groups"),
         (["--agents", "4", "--objects", "4", "--join", "2:50"], "--join: needs --realtime"),
+        (["--agents", "4", "--objects", "4", "--fanout", "monitor"], "--fanout: needs --realtime"),
+        (["--agents", "4", "--objects", "4", "--realtime", "--fanout", "all"], "--fanout: 'all' is not one of"),
+        (["--agents", "4", "--objects", "4", "--realtime", "--hosts", "3", "--split", "0,1/2,3:10:5",
+          "--fanout", "monitor"], "--split: cuts robots apart, not the monitor"),
         (["--agents", "4", "--objects", "4", "--discovery", "static"], "--discovery: needs --hosts K"),
         (["--agents", "4", "--objects", "4", "--nmax", "2", "--realtime", "--join", "2:50", "--join", "2:60"],
          "--join: agent 2 joins twice"),
@@ -252,7 +256,7 @@ def test_yaml_loads_as_pyyaml_safe_load(tmp_path):
 )
 def test_a_split_that_cannot_be_made_is_one_line(tmp_path, capsys, split, text):
     hosts = "2" if "needs --hosts" in text else "3"
-    args = ["--agents", "4", "--objects", "4", "--nmax", "3", "--realtime", "--hosts", hosts]
+    args = ["--agents", "4", "--objects", "4", "--nmax", "3", "--realtime", "--hosts", hosts, "--fanout", "direct"]
     for s in split:
         args += ["--split", s]
     assert exit_code(["up", "--prepare", "--run-dir", str(tmp_path / "run"), *args]) == 2
@@ -265,7 +269,7 @@ def test_a_split_places_each_group_on_hosts_of_its_own(tmp_path):
     """Group g of the first split on host g + 1; a robot in no group with the world and the
     membership node on host 0 (it reaches everyone)."""
     d = prepare(tmp_path, "--agents", "5", "--objects", "4", "--nmax", "3", "--realtime", "--hosts", "3",
-                "--split", "0,1/3:10:5")  # fmt: skip
+                "--split", "0,1/3:10:5", "--fanout", "direct")  # fmt: skip
     try:
         hosts = {
             line.split("\t")[0]: line.split("\t")[1] for line in (d / "processes").read_text().splitlines()

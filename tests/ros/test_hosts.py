@@ -109,7 +109,7 @@ def test_a_partition_between_hosts_heals(tmp_path, seconds):
     path.write_text(dump_scenario(generate_scenario(6, 8, 1, Grid(60, 20), 3)))  # finds until 79
     run = ost_up(
         "--scenario", str(path), "--realtime", "--rtf", "20", "--hosts", "3",
-        "--split", f"0,1,2/3,4,5:30:{seconds}", "--json", "--run-dir", str(tmp_path / "run"),
+        "--split", f"0,1,2/3,4,5:30:{seconds}", "--fanout", "direct", "--json", "--run-dir", str(tmp_path / "run"),
         "--timeout", "240", timeout=300,
     )  # fmt: skip
     assert run.returncode == 0, run.stderr[-3000:]

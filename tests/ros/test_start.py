@@ -87,7 +87,7 @@ def test_a_robot_reads_its_peers_on_the_domains_multicast_port(tmp_path, procs, 
     path.write_text(dump_scenario(generate_scenario(2, 2, 1, Grid(20, 10), 2)))
     env = ros_env(domain)
     profile = tmp_path / "fastdds.xml"
-    write_realtime_profile(profile, PROFILE, "ost", "ccp", "distributed")
+    write_realtime_profile(profile, PROFILE, "ost", "ccp", "distributed", "monitor")
     env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(profile)
     common = ["-p", f"scenario:={path}", "-p", "realtime:=true", *INSECURE]
     procs.run("agent_0", [str(BIN / "agent_node"), "--ros-args", *common, "-p", "agent_id:=0"], env=env)
