@@ -256,7 +256,8 @@ def test_yaml_loads_as_pyyaml_safe_load(tmp_path):
 )
 def test_a_split_that_cannot_be_made_is_one_line(tmp_path, capsys, split, text):
     hosts = "2" if "needs --hosts" in text else "3"
-    args = ["--agents", "4", "--objects", "4", "--nmax", "3", "--realtime", "--hosts", hosts, "--fanout", "direct"]
+    args = ["--agents", "4", "--objects", "4", "--nmax", "3", "--realtime", "--hosts", hosts]
+    args += ["--fanout", "direct"]
     for s in split:
         args += ["--split", s]
     assert exit_code(["up", "--prepare", "--run-dir", str(tmp_path / "run"), *args]) == 2
