@@ -327,7 +327,9 @@ def _remainder(sw: Sweep, t: int, period: int, at: Cell | None) -> tuple[Cell, .
 class RtCcpComm(RtRecovery, CcpComm):
     """CCP's comm module without a barrier."""
 
-    _all_selections: dict[int, tuple[tuple[int, ...], np.ndarray]] = field(default_factory=dict)
+    _all_selections: dict[int, tuple[tuple[int, ...], dict[int, tuple[int, ...]]]] = field(
+        default_factory=dict
+    )
     _early: dict[int, list[AgentMessage]] = field(default_factory=dict)  # coordination -> selections
 
     def receive(self, t: int, messages: Sequence[AgentMessage]) -> None:

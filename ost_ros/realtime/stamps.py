@@ -334,8 +334,12 @@ class Batches:
 
     def next_stamp(self) -> int | None:
         """The smallest stamp above the last batch taken that holds a message or a notice."""
-        stamps = [s for s, m in self._pending.items() if m] + list(self._notices)
-        return min(stamps) if stamps else None
+        # (after every message a robot takes: no list built)
+        best = min((s for s, m in self._pending.items() if m), default=None)
+        if self._notices:
+            first = min(self._notices)
+            best = first if best is None else min(best, first)
+        return best
 
     def take(self, t: int) -> list:
         """Batch t (complete): its messages in the one order, notices last. Skipped stamps

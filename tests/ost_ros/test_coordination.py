@@ -137,3 +137,23 @@ def test_policy_triggers():
     for bad in (dict(ci=0), dict(interval=0), dict(area_fraction=1.5), dict(interval=2, area_fraction=0.5)):
         with pytest.raises(ValueError):
             CoordinationPolicy(**bad)
+
+
+@given(
+    st.integers(-(2**40), 2**40),
+    st.lists(st.integers(0, 200), max_size=6).map(tuple),
+    st.integers(-(2**40), 2**40),
+    st.integers(-(2**40), 2**40),
+    st.booleans(),
+)
+def test_an_assignments_text_is_the_dataclass_one(obj, agents, start, finish, numpy_ints):
+    """Assignment writes its own repr (a robot writes the schedule's for each digest): the
+    text the generated one wrote, numpy integers included."""
+    import dataclasses
+
+    import numpy as np
+
+    Ref = dataclasses.make_dataclass("Assignment", ["object", "agents", "start", "finish"], frozen=True)
+    if numpy_ints:
+        start, finish = np.int64(start), np.int64(finish)
+    assert repr(Assignment(obj, agents, start, finish)) == repr(Ref(obj, agents, start, finish))

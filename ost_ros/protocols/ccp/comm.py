@@ -24,8 +24,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 
-import numpy as np
-
 from ost_ros.coordination import Assignment, CoordinationPolicy, coordinate
 from ost_ros.messages import AgentLost, AgentMessage, ObjectFound, ScheduledObject, SearchDone, Status
 from ost_ros.planner import improve
@@ -61,7 +59,9 @@ class CcpComm(Recovery, QueuedMessages):
     # whether that update is the final one.
     awaiting: set[int] = field(default_factory=set)
     closing: bool = False
-    _selections: dict[int, tuple[tuple[int, ...], np.ndarray]] = field(default_factory=dict)
+    # per coordination: its survivors, and each one's selections as Python ints (read once:
+    # a peer's selection is checked against them as it comes, 50 a coordination at N=50)
+    _selections: dict[int, tuple[tuple[int, ...], dict[int, tuple[int, ...]]]] = field(default_factory=dict)
     _outbox: list[AgentMessage] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -125,8 +125,7 @@ class CcpComm(Recovery, QueuedMessages):
                 f"agent {msg.sender}: selection for unknown coordination {msg.coordination}; ignored"
             )
             return
-        ids, selections = mine
-        expected = tuple(int(x) for x in selections[:, ids.index(msg.sender)])
+        expected = mine[1][msg.sender]
         if tuple(msg.objects) != expected:
             self.knowledge.warnings.append(
                 f"agent {msg.sender}: selection {list(msg.objects)} in coordination "
@@ -181,10 +180,10 @@ class CcpComm(Recovery, QueuedMessages):
         k.assign(result.schedule)
         k.unscheduled.clear()
         k.coordinations += 1
-        self._selections[k.coordinations] = (survivors, result.selections)
-        self._selections.pop(k.coordinations - _SELECTION_MEMORY, None)
         # each survivor's selections as Python ints, read once (a team model speaks for all N)
         picks = dict(zip(survivors, map(tuple, result.selections.T.tolist())))
+        self._selections[k.coordinations] = (survivors, picks)
+        self._selections.pop(k.coordinations - _SELECTION_MEMORY, None)
         for voice in self.voices:
             if voice in picks:  # (a robot declared out follows the team's view, selecting nothing)
                 self._outbox.append(Selection(voice, t, k.coordinations, picks[voice]))
