@@ -179,8 +179,8 @@ class RealtimeAgentNode(Node):
             receivers = receivers_for(
                 self,
                 rtp.relayed(self.p["protocol"], self.p["coordination"]),
-                [*(self.on_sample for _ in kinds), self.take, self.take],
-                [*(known for _ in kinds), not_for_me, not_for_me],
+                [*(self.on_sample for _ in kinds), self.take, self.take, self.take],
+                [*(known for _ in kinds), not_for_me, not_for_me, not_for_me],
                 g,
                 th,
             )
@@ -196,7 +196,9 @@ class RealtimeAgentNode(Node):
         self.pub_hellos = self.create_publisher(
             wire.ros_type(Hello), rtp.HELLOS, q, event_callbacks=tp.no_events_pub()
         )
-        self.sub_hellos = tp.subscribe(self, Hello, rtp.HELLOS, self.take, q, g, th, skip=not_for_me)
+        self.sub_hellos = None  # (fanout:=monitor: in the bundles)
+        if direct:
+            self.sub_hellos = tp.subscribe(self, Hello, rtp.HELLOS, self.take, q, g, th, skip=not_for_me)
         self.pub_digests = self.create_publisher(
             wire.ros_type(Digest), rtp.DIGESTS, q, event_callbacks=tp.no_events_pub()
         )
@@ -247,12 +249,12 @@ class RealtimeAgentNode(Node):
             *((pub, f"{tp.message_topic(kind)} readers", peers) for kind, pub in self.kind_pubs.items()),
             *((sub, f"{sub.topic_name} writers", n + 1) for sub in self.kind_subs),
             (self.pub_marks, "marks readers", peers),
-            (self.pub_hellos, "hellos readers", n),
-            (self.sub_hellos, "hellos writers", n),
+            (self.pub_hellos, "hellos readers", n if self.sub_bundles is None else 1),
             (self.pub_needs, "needs readers", n if self.sub_bundles is None else 1),
         ]
         if self.sub_bundles is None:
             counts += [(self.sub_marks, "marks writers", n + 1), (self.sub_needs, "needs writers", n)]
+            counts.append((self.sub_hellos, "hellos writers", n))
         else:
             counts.append((self.sub_bundles, "bundles", 1))
         counts += [

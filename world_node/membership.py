@@ -152,7 +152,7 @@ class Membership:
             self.kind_pubs.append(pub)
             on = functools.partial(self.on_sample, index, pub)
             self.kind_subs.append(tp.subscribe(node, kind, topic, on, q, g, th, keep_bytes=True, skip=known))
-        self.mark_kind = len(self.kind_pubs)  # (marks, then needs: after the messages)
+        self.mark_kind = len(self.kind_pubs)  # (marks, needs, hellos: after the messages)
         self.pub_lost = node.create_publisher(wire.ros_type(Lost), rtp.LOST, tp.LATCHED_ALL_QOS)
         self.pub_marks = node.create_publisher(wire.ros_type(Mark), rtp.MARKS, q, event_callbacks=quiet())
         on_mark = functools.partial(self.on_mark, self.mark_kind)
@@ -164,7 +164,9 @@ class Membership:
         self.sub_needs = tp.subscribe(
             node, Need, rtp.NEEDS, on_need, q, g, th, keep_bytes=keep, skip=other_run
         )
-        self.sub_hellos = tp.subscribe(node, Hello, rtp.HELLOS, self.on_hello, q, g, th, skip=other_run)
+        self.sub_hellos = tp.subscribe(
+            node, Hello, rtp.HELLOS, self.on_hello, q, g, th, keep_bytes=keep, skip=other_run
+        )
         # Liveliness: a robot's lease lapsing makes it a suspect; silent on, it is declared out.
         self.alive = Liveliness(
             node, self.ids, self.failure_timeout, suspect=lambda _i: self.started and not self.ended
@@ -233,9 +235,12 @@ class Membership:
             self.monitor.wanted.add(m.stamp)
         self.heard_from(m.sender)
 
-    def on_hello(self, h: Hello) -> None:
+    def on_hello(self, h: Hello, data: bytes = b"") -> None:
         """A robot declared out asks to come back: from now on the monitor waits for its
-        watermark again (a member readmits it with a stamped Back)."""
+        watermark again (a member readmits it with a stamped Back). With ``fanout:=monitor`` the
+        members hear it from the monitor: passed on as it came (each member judges it)."""
+        if self.bundler is not None:
+            self.bundler.add(self.mark_kind + 2, data)
         why = misfit(h, self.ids, self.monitor.lives)
         if why is not None:
             self.stale(rtp.HELLOS, h.sender, why)

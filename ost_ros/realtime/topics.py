@@ -6,7 +6,7 @@ Fast DDS profile of a run, :mod:`ost_ros.commands.dds_profile`). The nodes impor
 from __future__ import annotations
 
 from ost_ros import protocols
-from ost_ros.realtime.messages import Back, Mark, Need, RtStatus, ScheduleUpdate, Status
+from ost_ros.realtime.messages import Back, Hello, Mark, Need, RtStatus, ScheduleUpdate, Status
 
 MARKS = "marks"  # agents → agents (and the world): watermarks
 NEEDS = "needs"  # agents → agents: a batch waits for watermarks
@@ -36,17 +36,18 @@ def message_kinds(protocol: str, organisation: str = "distributed") -> tuple[typ
 
 def relayed(protocol: str, organisation: str = "distributed") -> tuple[tuple[str, type], ...]:
     """(topic, kind) of what the monitor passes on with ``fanout:=monitor``, in the order a
-    bundle's ``kinds`` number them: the robot-to-robot messages, the watermarks, the needs."""
+    bundle's ``kinds`` number them: the robot-to-robot messages, the watermarks, the needs, the
+    hellos of robots out."""
     kinds = tuple((str(getattr(k, "TYPE")), k) for k in message_kinds(protocol, organisation))  # noqa: B009
-    return (*kinds, (MARKS, Mark), (NEEDS, Need))
+    return (*kinds, (MARKS, Mark), (NEEDS, Need), (HELLOS, Hello))
 
 
 def everyone_reads(protocol: str, organisation: str, fanout: str) -> tuple[str, ...]:
     """The topics every robot of a realtime run reads (and the membership monitor): each robot's
-    messages and watermarks — or, with ``fanout:=monitor``, the monitor's bundles of them (each
-    robot's own topics then have one reader, the monitor) — the membership's notices and hellos,
-    the bases' clock."""
+    messages, watermarks and hellos — or, with ``fanout:=monitor``, the monitor's bundles of them
+    (each robot's own topics then have one reader, the monitor) — the membership's notices, the
+    bases' clock."""
     if fanout == "monitor":
-        return tuple(sorted({BUNDLES, HELLOS, LOST, BASE_CLOCK}))
+        return tuple(sorted({BUNDLES, LOST, BASE_CLOCK}))
     kinds = {str(getattr(k, "TYPE")) for k in message_kinds(protocol, organisation)}  # noqa: B009
     return tuple(sorted(kinds | {MARKS, NEEDS, HELLOS, LOST, BASE_CLOCK}))

@@ -32,15 +32,15 @@ def multicast_readers(text: str) -> dict[str, list[tuple[str | None, str | None]
 @pytest.mark.parametrize("fanout", ["direct", "monitor"])
 def test_every_topic_every_robot_reads_is_multicast_and_no_other(protocol, organisation, fanout):
     # what a realtime robot subscribes to from all its peers (agent_node/realtime.py): each
-    # message kind's topic and the watermarks — with fanout:=monitor the monitor's bundles of
-    # them instead —, the membership's notices and hellos, the bases' clock (a topic one node
+    # message kind's topic, the watermarks and hellos — with fanout:=monitor the monitor's
+    # bundles of them instead —, the membership's notices, the bases' clock (a topic one node
     # reads on the multicast locator would reach every participant)
     if fanout == "direct":
         expected = {tp.message_topic(k) for k in rtp.message_kinds(protocol, organisation)}
-        expected |= {rtp.MARKS, rtp.NEEDS}
+        expected |= {rtp.MARKS, rtp.NEEDS, rtp.HELLOS}
     else:
         expected = {rtp.BUNDLES}
-    expected |= {rtp.HELLOS, rtp.LOST, rtp.BASE_CLOCK}
+    expected |= {rtp.LOST, rtp.BASE_CLOCK}
     assert set(everyone_reads(protocol, organisation, fanout)) == expected
     text = realtime_profile(bringup.LOCALHOST_PROFILE.read_text(), "ost", protocol, organisation, fanout)
     readers = multicast_readers(text)
