@@ -236,17 +236,21 @@ def test_a_robot_that_starts_late_keeps_what_its_peers_said(tmp_path):
     assert max(result["lag"].values()) >= 50  # it did start late: a batch waited 2 s (100 steps) for it
 
 
-def test_endpoints_whose_discovery_stopped_moving_are_renewed_and_carry_the_run(tmp_path):
+@pytest.mark.parametrize(("fanout", "late"), [("direct", "agent_3"), ("monitor", "membership")])
+def test_endpoints_whose_discovery_stopped_moving_are_renewed_and_carry_the_run(tmp_path, fanout, late):
     """Fast DDS now and then never pairs one writer with one reader (a team of 50 once waited
     for good on one robot's ``needs``): a robot creates anew the endpoints whose matching has not
-    moved for ``rediscover_s`` before the start. Here robot 3 is not up yet, so the others' matching
-    stops moving; their renewed endpoints carry the run."""
+    moved for ``rediscover_s`` before the start. Here a process a robot waits for is not up yet —
+    a peer (``--fanout direct``: it reads its peers' topics) or the membership monitor
+    (``--fanout monitor``: it reads no peer's, only the monitor's bundles) — so its matching stops
+    moving; its renewed endpoints carry the run."""
 
     def quick(name, argv):
         return [*argv, "-p", "rediscover_s:=0.5"] if name.startswith("agent_") else argv
 
-    late = ("agent_3", "agent_0", "creating those endpoints anew")
-    result, _agents, procs = _run_prepared(tmp_path, quick, late=late)
+    result, _agents, procs = _run_prepared(
+        tmp_path, quick, options=("--fanout", fanout), late=(late, "agent_0", "creating those endpoints anew")
+    )
     kept_its_promise(result, 6)
     assert "Traceback" not in procs.log("agent_0")
 
