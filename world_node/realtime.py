@@ -677,6 +677,7 @@ class RealtimeWorldNode(Node):
             "coordinations_compared": compared,
             "membership": {
                 "monitor": self.p["membership"],
+                "fanout": self.p["fanout"],
                 "failure_timeout_s": self.failure_timeout,
                 "declared": self.declared,
                 "rejoins": self.rejoins,

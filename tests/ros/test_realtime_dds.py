@@ -94,6 +94,7 @@ def test_a_robot_killed_mid_run_is_recovered_from(tmp_path, monitor):
     result = result_json(run.stdout)
     assert [f["agent"] for f in result["failures"]] == [2]
     assert result["membership"]["monitor"] == monitor and result["membership"]["declared"] == 1
+    assert result["membership"]["fanout"] == "monitor"  # (the default)
     who = "membership" if monitor == "node" else "world"
     assert "agent 2 out" in (tmp_path / "run" / f"{who}.log").read_text()
     assert ("membership node" in run.stderr) == (monitor == "node")
@@ -375,7 +376,7 @@ def test_a_team_whose_messages_go_through_the_monitor_keeps_every_promise(tmp_pa
     result = result_json(run.stdout)
     kept_its_promise(result, 10, dead=(4,))
     m = result["membership"]
-    assert m["rejoins"] == 1 and m["out_at_end"] == [4]
+    assert m["fanout"] == "monitor" and m["rejoins"] == 1 and m["out_at_end"] == [4]
     back = max(t for kind, a, t in m["events"] if kind == "back" and a == 2)
     assert any(2 in o["agents"] and o["start"] > back for o in result["objects"])  # it works
     said = (run_dir / "membership.log").read_text()
