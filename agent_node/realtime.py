@@ -176,11 +176,13 @@ class RealtimeAgentNode(Node):
             self.sub_marks = tp.subscribe(self, Mark, rtp.MARKS, self.take, q, g, th, skip=not_for_me)
             self.sub_needs = tp.subscribe(self, Need, rtp.NEEDS, self.take, q, g, th, skip=not_for_me)
         else:
+            relayed = rtp.relayed(self.p["protocol"], self.p["coordination"])
+            # (a protocol message as a sample; a mark, need or hello as it is)
             receivers = receivers_for(
                 self,
-                rtp.relayed(self.p["protocol"], self.p["coordination"]),
-                [*(self.on_sample for _ in kinds), self.take, self.take, self.take],
-                [*(known for _ in kinds), not_for_me, not_for_me, not_for_me],
+                relayed,
+                [self.on_sample if k in kinds else self.take for _t, k in relayed],
+                [known if k in kinds else not_for_me for _t, k in relayed],
                 g,
                 th,
             )

@@ -33,6 +33,7 @@ from ost_ros.errors import UsageError
 from ost_ros.model import DEFAULT_HEIGHT, DEFAULT_NMAX, DEFAULT_WIDTH
 from ost_ros.protocols.shared.agent import PLAN_HORIZON
 from ost_ros.realtime.net import parse_split
+from ost_ros.realtime.topics import FANOUTS
 
 # Node roles: the processes of a run that read settings as ROS parameters.
 WORLD, AGENT, WATCH = "world", "agent", "watch"
@@ -197,7 +198,7 @@ def _settings() -> tuple[Setting, ...]:
         S("fanout", "monitor", "realtime runs: how a robot's messages reach its peers — monitor "
           "(to the membership monitor alone, which passes them on in bundles: N + N deliveries "
           "when every robot speaks) or direct (each sample to every peer: N x N)", "ROS", WA,
-          choices=("monitor", "direct")),
+          choices=FANOUTS),
         S("spawn", "fork", "how ost up / ost_up.sh start the robots on this host: fork (the robot "
           "node's code imported once, a process forked per robot: a team of 50 comes up sooner) or "
           "exec (each from its executable, as on robots)", "ROS", choices=("fork", "exec"),

@@ -146,17 +146,20 @@ class Membership:
         if p["fanout"] == "monitor":
             pub_bundles = node.create_publisher(BUNDLE_TYPE, rtp.BUNDLES, q, event_callbacks=quiet())
             self.bundler = Bundler(node, pub_bundles, self.run, g)
-        for index, kind in enumerate(rtp.message_kinds(p["protocol"], p["coordination"])):
+        # each relayed topic's number in a bundle's kinds
+        self.kind_of = {
+            topic: i for i, (topic, _k) in enumerate(rtp.relayed(p["protocol"], p["coordination"]))
+        }
+        for kind in rtp.message_kinds(p["protocol"], p["coordination"]):
             topic = tp.message_topic(kind)
             pub = node.create_publisher(wire.ros_type(kind), topic, q, event_callbacks=quiet())
             self.kind_pubs.append(pub)
-            on = functools.partial(self.on_sample, index, pub)
+            on = functools.partial(self.on_sample, self.kind_of[topic], pub)
             self.kind_subs.append(tp.subscribe(node, kind, topic, on, q, g, th, keep_bytes=True, skip=known))
-        self.mark_kind = len(self.kind_pubs)  # (marks, needs, hellos: after the messages)
         self.pub_lost = node.create_publisher(wire.ros_type(Lost), rtp.LOST, tp.LATCHED_ALL_QOS)
         self.pub_marks = node.create_publisher(wire.ros_type(Mark), rtp.MARKS, q, event_callbacks=quiet())
-        on_mark = functools.partial(self.on_mark, self.mark_kind)
-        on_need = functools.partial(self.on_mark, self.mark_kind + 1)
+        on_mark = functools.partial(self.on_mark, self.kind_of[rtp.MARKS])
+        on_need = functools.partial(self.on_mark, self.kind_of[rtp.NEEDS])
         keep = self.bundler is not None
         self.sub_marks = tp.subscribe(
             node, Mark, rtp.MARKS, on_mark, q, g, th, keep_bytes=keep, skip=other_run
@@ -240,7 +243,7 @@ class Membership:
         watermark again (a member readmits it with a stamped Back). With ``fanout:=monitor`` the
         members hear it from the monitor: passed on as it came (each member judges it)."""
         if self.bundler is not None:
-            self.bundler.add(self.mark_kind + 2, data)
+            self.bundler.add(self.kind_of[rtp.HELLOS], data)
         why = misfit(h, self.ids, self.monitor.lives)
         if why is not None:
             self.stale(rtp.HELLOS, h.sender, why)
@@ -274,7 +277,7 @@ class Membership:
             if self.bundler is None:
                 self.guard.publish(self.pub_marks, m, run=self.run)
             else:
-                self.bundler.add(self.mark_kind, self.guard.encode(self.pub_marks, m, run=self.run))
+                self.bundler.add(self.kind_of[rtp.MARKS], self.guard.encode(self.pub_marks, m, run=self.run))
 
     def relay(self, originals: list[tuple[int, Any, bytes]]) -> None:
         """Say robots' messages again, as they sealed them: on their topics, or in bundles."""

@@ -19,7 +19,7 @@ BASE_CLOCK = "base_clock"  # world → agents: sim time, and how many events eac
 BASE_GOALS = "base_goals"  # agents → world: each robot's goals for its own base
 BUNDLES = "bundles"  # membership → agents (fanout:=monitor): the robots' messages, passed on
 
-FANOUTS = ("direct", "monitor")  # how a robot's messages reach its peers (the fanout parameter)
+FANOUTS = ("monitor", "direct")  # how a robot's messages reach its peers (the fanout parameter)
 
 
 def message_kinds(protocol: str, organisation: str = "distributed") -> tuple[type, ...]:
