@@ -5,7 +5,7 @@ one process (every message through the codec, as the nodes exchange them), per p
 
 Prints, per run: steps, lockstep round trips, steps the world skipped on the agents' plans, and
 the CPU seconds of the whole run (world + all agents' planning and acting). The result of every
-run is checked against ``ost sim`` (identical). Figures: docs/ros.md, "Event skipping".
+run is checked against ``ost sim`` (identical). Figures: docs/benchmarks.md.
 """
 
 from __future__ import annotations

@@ -13,9 +13,8 @@ batch of messages was processed; ≤ 1 means the network keeps up with the pace)
 the run and of the bring-up, and the CPU seconds of every process (the children's rusage). The
 lockstep over DDS (``ost up`` without --realtime) is measured on the same scenario for reference
 (up to --lockstep-max agents: at N=50 it takes minutes).
---large adds N=50, M=200 at the --large-rtf factors (on two cores at rtf 100, docs/realtime.md:
-with ``--fanout direct`` every object, the makespan +49–74 % over ``ost sim`` in three runs,
-214–240 s with bring-up; with ``--fanout monitor`` see "Fan-out through the monitor").
+--large adds N=50, M=200 at the --large-rtf factors (the paper's largest team; figures for
+both fan-outs in docs/benchmarks.md).
 --fanout takes a comma-separated list: each real-time factor's runs alternate between them (an
 A/B in one run of the script), each row labelled with its fan-out.
 

@@ -42,7 +42,7 @@ class Assignment:
 
     def __repr__(self) -> str:
         # The text the dataclass would write, a third of its cost: a robot writes the whole
-        # schedule's for each coordination's digest (docs/realtime.md)
+        # schedule's for each coordination's digest (docs/benchmarks.md)
         return f"Assignment(object={self.object!r}, agents={self.agents!r}, start={self.start!r}, finish={self.finish!r})"
 
 

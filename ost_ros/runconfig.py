@@ -403,12 +403,9 @@ class RunConfig:
         try:
             spec = protocols.check(self["protocol"], scenario=scenario, policy=self.policy(), silence=silence)
             if self["realtime"]:
-                from ost_ros.realtime.run import check_realtime, refused
+                from ost_ros.realtime.run import check_realtime
 
-                check_realtime(self["protocol"], self.policy(), self.protocol_settings())
-                why = refused(self["protocol"], "dds")  # (docs/realtime.md, "HCP without a barrier")
-                if why:
-                    raise protocols.ProtocolError(why)
+                check_realtime(self["protocol"], self.policy())
             return spec
         except protocols.ProtocolError as exc:
             raise ConfigError("protocol", str(exc)) from None

@@ -36,7 +36,7 @@ def realtime_profile(base: str, namespace: str, protocol: str, organisation: str
     # Endpoint discovery by multicast too (Fast DDS avoids it by default): a participant then
     # announces each endpoint once to the host, not once per participant. With the readers on
     # multicast and without it, a team of 50 came up in 62-72 s against 42-50 s before; with it
-    # in 36-40 s (docs/ros.md, "Transport").
+    # in 36-40 s (docs/benchmarks.md).
     if EDP_ANCHOR not in head:
         raise ValueError("not the loopback profile (no </discovery_config> to add endpoint discovery to)")
     head = head.replace(EDP_ANCHOR, EDP_ANCHOR + EDP_MULTICAST, 1)

@@ -236,7 +236,7 @@ def run(
     from ost_ros.realtime.run import check_realtime, run_realtime
 
     try:
-        check_realtime(args.protocol, policy, settings)
+        check_realtime(args.protocol, policy)
     except ProtocolError as exc:
         raise UsageError(f"--latency: {exc}") from None
     joins = _faults(args, scenario, failures)

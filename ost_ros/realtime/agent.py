@@ -1,40 +1,46 @@
-"""One robot without a barrier, ROS-free: its body (search and motion, driving its base by goals)
-and its comm module (fed batch by batch by the agreement layer).
+"""One robot without a barrier, ROS-free: its runtime drives its body (search and motion,
+driving its base by goals: :mod:`ost_ros.realtime.body`) and feeds its comm module batch by batch
+(the agreement layer: :mod:`ost_ros.realtime.stamps`).
 
 :class:`RealtimeAgent` is a set of callbacks — ``start``, ``on_message``, ``on_result``,
-``on_detection``, ``on_carry``, ``on_feedback``, ``on_clock`` — each given the current time and
-returning what to do as a list of outputs: :class:`Publish` (to every peer), :class:`SendGoal`
-(to its own base), :class:`AskFeedback` (where will the base be at a time), :class:`WakeAt` (call
-``on_clock`` then), :class:`~ost_ros.realtime.messages.Digest` (for observers). It knows nothing
-of who calls it: the in-process run (:mod:`ost_ros.realtime.run`) and the agent node wire the
-same object.
+``on_detection``, ``on_carry``, ``on_feedback``, ``on_clock``, ``again`` — each given the current
+time and returning what to do as a list of outputs (:mod:`ost_ros.realtime.outputs`):
+:class:`Publish` (to every peer), :class:`SendGoal` (to its own base), :class:`AskFeedback` (where
+will the base be at a time), :class:`WakeAt` (call ``on_clock`` then), and a
+:class:`~ost_ros.realtime.messages.Digest` (for observers). It knows nothing of who calls it: the
+in-process run (:mod:`ost_ros.realtime.run`) and the agent node wire the same object.
 
-The body reuses the protocol's own agent (:class:`RtScheduleAgent`, a
-:class:`~ost_ros.protocols.shared.agent.ScheduleAgent` that never writes into the comm's
-knowledge) the way the event engine does: at each decision (a goal reached, news in its sensor,
-the comm changed something, a step after it acted) it asks for its own plan; a settled first
-segment becomes a goal (sweep/walk: FOLLOW that path; hold/carry: CARRY with the assignment's
-group; wait: STAND), otherwise it acts for one step. So at latency 0 the run is the step engine's.
+The body reuses the protocol's own agent the way the event engine does: at each decision (a goal
+reached, news in its sensor, the comm changed something, a step after it acted) it asks for its
+own plan; a settled first segment becomes a goal (sweep/walk: FOLLOW that path; hold/carry: CARRY
+with the assignment's group; wait: STAND), otherwise it acts for one step. So at latency 0 the
+run is the step engine's.
 
 The comm module sees only complete batches, in stamp order: the schedule it computes is a
 function of the stamped messages. Everything the body reports — finds, search done, its status
 after a failure — goes out as a stamped message and enters the comm (its own included) only
-through a batch.
+through a batch. How far the robot commits is its :class:`~ost_ros.realtime.commit.CommitRule`'s.
+
+Its state, in named parts: ``rule`` (what it may commit), ``decisions`` (when it last decided
+and acted, whether a decision is to be taken again), ``goals`` (what runs on its base),
+``status`` (its status after a failure), ``life`` (its place in the team: out, its life, the
+Hellos it answers) and ``record`` (what the run reports of it).
 """
 
 from __future__ import annotations
 
 import hashlib
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 from ost_ros.coordination import Assignment
 from ost_ros.model import Cell, can_move
 from ost_ros.motion import apply
-from ost_ros.protocols.plans import Plan, Segment
-from ost_ros.protocols.shared.agent import GlobalState, ScheduleAgent, _Planner
-from ost_ros.protocols.shared.recovery import Sweep
+from ost_ros.protocols.plans import Segment
+from ost_ros.protocols.shared.agent import GlobalState
+from ost_ros.realtime.body import RtScheduleAgent
+from ost_ros.realtime.commit import EPS, CommitRule, Gate
 from ost_ros.realtime.messages import (
     FINISH_STATE,
     SEARCHING_STATE,
@@ -47,12 +53,10 @@ from ost_ros.realtime.messages import (
     Lost,
     Mark,
     Need,
-    ObjectFound,
-    ObjectInfo,
     Observation,
     RtStatus,
-    SearchDone,
 )
+from ost_ros.realtime.outputs import AskFeedback, Output, Publish, SendGoal, WakeAt
 from ost_ros.realtime.stamps import Batches, Speaker, stamp_of
 from ost_ros.realtime.world import (
     ABORTED,
@@ -67,145 +71,122 @@ from ost_ros.realtime.world import (
     GoalResult,
     Stand,
 )
-from ost_ros.search import SearchState, route
+from ost_ros.search import route
 
-EPS = 1e-9
-
-
-# ----------------------------------------------------------------------------- outputs
-
-
-@dataclass(frozen=True)
-class Publish:
-    """Broadcast to every peer (an Envelope, a Mark or a Need)."""
-
-    payload: Envelope | Mark | Need | Hello
-
-
-@dataclass(frozen=True)
-class SendGoal:
-    """A goal for the agent's own base (client id ``id``), taking over at its first boundary at or
-    after ``at``."""
-
-    id: int
-    goal: Goal
-    at: float
-
-
-@dataclass(frozen=True)
-class AskFeedback:
-    """Where will the base be at its first boundary at or after ``at`` (answer: ``on_feedback``)."""
-
-    at: float
-
-
-# A robot whose base is across a network decides as of the time its decision was due if that is
-# less than this much ago (steps): its goal then has the rest of the step to reach the base, which
-# takes it over at that time (RealtimeWorld.takeover) — as a base on board would.
-DECIDE_WINDOW = 0.5
-
-
-def decision_time(at: float, now: float) -> float:
-    """The moment a decision asked for ``at`` is taken as of, answered at ``now`` (a robot whose
-    base is across a network: its picture of the base answers): ``at`` if due less than
-    DECIDE_WINDOW ago, else now."""
-    return at if now - DECIDE_WINDOW < at else max(at, now)
-
-
-@dataclass(frozen=True)
-class WakeAt:
-    time: float
-
-
-Output = Publish | SendGoal | AskFeedback | WakeAt | Digest
-
-
-# ----------------------------------------------------------------------------- the body
-
-
-class RtScheduleAgent(ScheduleAgent):
-    """The schedule agent's body without a barrier: its finds go out as messages and enter the
-    shared knowledge only through its comm's batches (``reported`` remembers what it said)."""
-
-    def __init__(self, *args, **kw) -> None:
-        super().__init__(*args, **kw)
-        self.reported: set[int] = set()
-        self.sweep_task: Sweep | None = None  # the take-over sweep it is on (None: its own)
-        # The object its base last lifted, as its runtime knows (its base across a network: a
-        # hold may come too late, and where its base went says nothing of a carry); None: unused
-        self.lifted: int | None = None
-
-    def act(self, obs: Observation) -> Action:
-        self.t, self.position = obs.t, obs.position
-        self._search(obs)
-        self._walk_back()
-        kind, direction, obj = self._motion(obs)
-        return Action(self.id, self.t, kind, direction, obj, self.state.value)
-
-    def _walk_back(self) -> None:
-        """Holding or carrying by its picture, but its base moved on without the load (a hold
-        that came after its base had left the object's cell): nothing is carried — back to it
-        (the lockstep agent would take "it has moved" for a carry under way)."""
-        cur = self.current
-        if (
-            self.lifted is not None
-            and cur is not None
-            and self.state in (GlobalState.WAITING, GlobalState.MOVING)
-            and self.lifted != cur.object
-            and self.position != self.knowledge.objects[cur.object].location
-        ):
-            self.state = GlobalState.HELPING
-
-    def _search(self, obs: Observation) -> None:
-        if self.state is not GlobalState.SEARCHING:
-            return
-        for o in obs.sensed:
-            if self.news(o):
-                self.reported.add(o.id)
-                self._outbox.append(ObjectFound(self.id, obs.t, o))
-        if self.search.at_end(self.position):
-            self.search.state = SearchState.DONE
-            self.state = GlobalState.DECISION
-            self._outbox.append(self._search_done(obs.t))
-
-    def report_late(self, t: int, sensed: Sequence[ObjectInfo]) -> list:
-        """Finds its base sensed at step ``t`` that it hears of only now (a network between the
-        robot and its base): reported as sensed then, without acting (it has moved on)."""
-        out = []
-        for o in sensed:
-            if self.news(o):
-                self.reported.add(o.id)
-                out.append(ObjectFound(self.id, t, o))
-        return out
-
-    def _search_done(self, t: int) -> SearchDone:
-        return SearchDone(self.id, t)
-
-    def _decide(self, obs: Observation) -> bool:
-        self._read_schedule()
-        if self.tasks and isinstance(self.tasks[0], Sweep):
-            self.sweep_task = self.tasks[0]
-        return super()._decide(obs)
-
-    def news(self, obj: ObjectInfo) -> bool:
-        return obj.id not in self.knowledge.objects and obj.id not in self.reported
-
-    def plan(self, t: int, position: Cell) -> Plan:
-        return _Planner(self, t, position, None).run()
-
-    def communicate(self, t: int, messages: Sequence) -> None:
-        self.comm.receive(t, messages)  # the runtime reacts to failures and recoveries
-
-    def body_messages(self) -> list:
-        out, self._outbox = self._outbox, []
-        return out
-
-
-# ----------------------------------------------------------------------------- the runtime
+__all__ = ["EPS", "RealtimeAgent", "RtScheduleAgent"]
 
 
 def _digest(text: str) -> str:
     return hashlib.blake2b(text.encode(), digest_size=8).hexdigest()
+
+
+# ----------------------------------------------------------------------------- its state, in parts
+
+
+@dataclass
+class Decisions:
+    """When its body last decided and acted."""
+
+    last: float = -1.0  # the time of the last decision
+    # The next answer is decided on even if it is of the last decision's moment, and may be as of
+    # a time before the last decision (never before the last goal it sent): a decision asked for
+    # again (its picture was stale, a goal ended, the comm changed what it should do)
+    again: bool = True
+    acted: int = -1  # step of the last act
+    wakes: set[float] = field(default_factory=set)  # the timers asked for (WakeAt), not fired yet
+
+    def redo(self) -> None:
+        """The next decision is taken whatever the last one was (see ``again``)."""
+        self.again = True
+
+    def took(self, at: float) -> bool:
+        """A decision as of ``at``: False if one was taken at that moment already."""
+        if not self.again and abs(at - self.last) < EPS:
+            return False  # one decision per moment
+        self.last, self.again = at, False
+        return True
+
+    def floor(self, goal_at: float) -> float:
+        """No decision is taken as of before this (its last goal's time; its last decision's,
+        unless one is asked for again)."""
+        return goal_at if self.again else max(goal_at, self.last)
+
+
+@dataclass
+class Goals:
+    """What it asked of its base (by its own picture)."""
+
+    goal: Goal | None = None  # the goal running on its base
+    id: int = 0  # the id of the last goal sent
+    label: str = SEARCHING_STATE  # the state label its base last got
+    sweep: tuple[Sequence[Cell], int] | None = None  # the running goal = that sweep from that index
+    at: float = -1.0  # the time the last goal it sent takes over at (at the earliest)
+    lifted: int = -1  # the object whose carry its base has begun (-1: none, as Feedback.carrying)
+    blocked: int = -1  # the object whose group lost a member: no CARRY for it until the comm knows
+    revive: bool = False  # its base was stopped (it was out): the next goal, even to stand, is sent
+
+
+@dataclass
+class Status:
+    """Its status after a failure (an :class:`~ost_ros.realtime.messages.RtStatus`)."""
+
+    due: bool = False  # a failure was learnt: its status goes out at the next decision
+    keep: int = 0  # own schedule entries done or under way when it was learnt
+    # Its let-go of a hold it is unsure of (CommitRule.unsure), sent and not answered yet (its goal
+    # id), and the hold it let go of — (goal id, goal, label, sweep): resumed if its group lifted first
+    letting_go: int | None = None
+    held: tuple[int, Goal | None, str, tuple[Sequence[Cell], int] | None] | None = None
+
+
+@dataclass
+class Life:
+    """Its place in the team: declared out (a notice of it taken), its life now, its own Hello
+    (the life it asked for), peers' Hellos it is to answer, how often it came back."""
+
+    out: bool = False
+    incarnation: int = 0
+    hello: int = 0  # the life its last Hello asked for
+    asked_back: Hello | None = None  # its last Hello (said again to peers back from a partition)
+    hellos: dict[int, Hello] = field(default_factory=dict)
+    rejoins: int = 0
+
+
+@dataclass
+class Record:
+    """What the run reports of the robot. ``whole`` (in process): every batch's stamp, when it
+    was taken and its digest, and every message's (stamp, seq) — the run's report computes the
+    disagreements, the heal times and the messages counted from them at the end; an agent node
+    keeps only the counts (the run is as long as it is, and these would grow with it)."""
+
+    whole: bool = True
+    max_lag: float = 0.0  # the most a batch was processed after its stamp (steps)
+    batches: int = 0  # batches taken
+    messages: int = 0  # messages sent
+    last: tuple[int, int] | None = None  # (stamp, seq) of the last message sent
+    sent: list[tuple[int, int]] = field(default_factory=list)  # (stamp, seq) of every message
+    digests: dict[int, Digest] = field(default_factory=dict)  # stamp -> digest (coordinations)
+    processed: set[int] = field(default_factory=set)  # stamps of every batch taken
+    taken_at: dict[int, float] = field(default_factory=dict)  # stamp -> when it was taken
+
+    def took(self, t: int, now: float) -> None:
+        self.batches += 1
+        self.max_lag = max(self.max_lag, now - t)
+        if self.whole:
+            self.processed.add(t)
+            self.taken_at[t] = now
+
+    def said(self, env: Envelope) -> None:
+        self.messages += 1
+        self.last = (env.stamp, env.seq)
+        if self.whole:
+            self.sent.append(self.last)
+
+    def digest(self, d: Digest) -> None:
+        if self.whole:
+            self.digests[d.stamp] = d
+
+
+# ----------------------------------------------------------------------------- the runtime
 
 
 @dataclass
@@ -216,60 +197,29 @@ class RealtimeAgent:
     team: tuple[int, ...]
     remote_base: bool = False  # its base's events cross a network (an agent node), not in process
     monitor: bool = False  # a membership monitor takes part (ost_ros.realtime.membership)
+    record: Record = field(default_factory=Record)
     speaker: Speaker = field(init=False)
     batches: Batches = field(init=False)
-    max_lag: float = 0.0  # the most a batch was processed after its stamp (steps)
-    sent: list[tuple[int, int]] = field(default_factory=list)  # (stamp, seq) of what it sent
-    digests: dict[int, Digest] = field(default_factory=dict)  # stamp -> digest (coordinations)
-    processed: set[int] = field(default_factory=set)  # stamps of every batch taken
-    taken_at: dict[int, float] = field(default_factory=dict)  # stamp -> when it was taken
-    goal: Goal | None = None  # the goal running on its base
-    goal_id: int = 0
-    label: str = SEARCHING_STATE  # the state label its base last got
-    _sweep: tuple[Sequence[Cell], int] | None = None  # running goal = that sweep from that index
-    _asked: bool = False
-    _asked_at: float = -1.0  # when it asked (sim time)
-    _decided: float = -1.0  # time of the last decision
-    _acted: int = -1  # step of the last act
-    _wakes: set[float] = field(default_factory=set)
-    _dues: set[float] = field(default_factory=set)  # times a decision is due at
-    _goal_at: float = -1.0  # the time the last goal it sent takes over at (at the earliest)
-    _carry_started: int = -1  # object whose carry the base has begun
-    _blocked: int = -1  # object whose group lost a member: no CARRY for it until the comm knows
-    _keep: int = 0  # own schedule entries done or under way when a failure was learnt
-    _status_due: bool = False  # a failure was learnt: its status goes out at the next decision
-    # A carry sent whose lift its base may not have told of yet (its base across a network): the
-    # status waits for its base's events up to its time (``_status_wait``), then says
-    _unsure_carry: bool = False
-    _status_wait: float | None = None
-    _letting_go: int = -1  # its let-go of such a hold, sent and not answered yet (its goal id)
-    _held: tuple[int, Goal | None, str, tuple[Sequence[Cell], int] | None] | None = (
-        None  # (the hold's goal id, goal, label, sweep)
+    rule: CommitRule = field(init=False)
+    decisions: Decisions = field(default_factory=Decisions, init=False)
+    goals: Goals = field(default_factory=Goals, init=False)
+    status: Status = field(default_factory=Status, init=False)
+    life: Life = field(default_factory=Life, init=False)
+    _asked_for: Assignment | None = field(default=None, init=False)  # the task it asked ahead for
+    # caches: CCP's improved planner's open entries, the comm's next event after the last batch,
+    # the shared view's signature and text
+    _open: tuple[tuple[int, ...], dict[int, frozenset[int]]] = field(
+        default_factory=lambda: ((), {}), init=False
     )
-    _commit_at: float | None = None  # a time to commit once the decision asked for is taken
-    # CCP's improved planner: the batch a carry waits to be known (_frozen), open_entries cached
-    _gate: int | None = None
-    _gated_at: int = -1  # the step of the decision the gate holds (it commits below it meanwhile)
-    _asked_for: Assignment | None = None  # the task it asked ahead for (_ask_ahead)
-    _open: tuple[tuple[int, ...], dict[int, frozenset[int]]] = field(default_factory=lambda: ((), {}))
-    _event: int | None = None  # the comm's next event after the last batch (cached)
-    _event_for: int = -2
-    # Membership: declared out (a notice of it taken), its life now, the Hello it sent (the
-    # incarnation it asked for), peers' Hellos it is to answer, how often it came back
-    out: bool = False
-    incarnation: int = 0
-    _hello: int = 0
-    _asked_back: Hello | None = None  # its last Hello (said again to peers back from a partition)
-    _hellos: dict[int, Hello] = field(default_factory=dict)
-    _revive: bool = False
-    rejoins: int = 0
-    _sign: tuple = ()
-    _view: str = ""
-    _out: list[Output] = field(default_factory=list)
+    _event: tuple[int, int | None] = field(default=(-2, None), init=False)
+    _sign: tuple = field(default=(), init=False)
+    _view: str = field(default="", init=False)
+    _out: list[Output] = field(default_factory=list, init=False)
 
     def __post_init__(self) -> None:
         self.speaker = Speaker(self.agent.id)
         self.batches = Batches(self.agent.id, self.team, self.speaker, monitor=self.monitor)
+        self.rule = CommitRule(remote=self.remote_base)
         self._view = self._schedule_view() or ""
 
     @property
@@ -280,6 +230,20 @@ class RealtimeAgent:
     def comm(self):
         return self.agent.comm
 
+    @property
+    def out(self) -> bool:
+        """Declared out, not back yet."""
+        return self.life.out
+
+    @property
+    def incarnation(self) -> int:
+        """Its life now (0 until it comes back)."""
+        return self.life.incarnation
+
+    def across_a_network(self) -> None:
+        """Its base's events cross a network (an agent node; in process, ``--base-delay``)."""
+        self.remote_base = self.rule.remote = True
+
     def destination(self, obj: int) -> Cell:
         """Where a known object goes (its base's picture of a carry needs it)."""
         return self.comm.knowledge.objects[obj].destination
@@ -287,29 +251,33 @@ class RealtimeAgent:
     def base_known(self, t: float) -> None:
         """Every event of its base up to time ``t`` has been handled (an agent node: its base's
         clock says how many it has sent up to t, and all are in): it may commit up to t, and
-        never further (in process the base is its own hardware: no limit)."""
-        self.speaker.ceiling = t
-        if self._status_wait is not None and t >= self._status_wait - EPS:
-            self._decided = -1.0
-            self._dues.add(t)  # its status can say now (its caller's clock comes)
+        never further (in process without a base lag: no limit)."""
+        self.rule.base_known = t
+        if self.rule.status_ready(t):
+            self.decisions.redo()
+            self.rule.due.add(t)  # its status can say now (its caller's clock comes)
 
     def held(self, now: float) -> bool:
         """Whether its commitment is held back by its base's events (not all in up to ``now``)
         while someone waits for it, or a batch due waits for it: its caller calls
         :meth:`on_clock` again once more of them are in."""
-        if self._status_wait is not None and self._unsure_carry:
-            return True
-        if self.speaker.ceiling >= math.floor(now + EPS):
-            return False
-        nxt = self.speaker.next_wanted()
-        if nxt is not None and self.speaker.committed < nxt <= now + EPS:
-            return True
-        t = self._next_batch()
-        return t is not None and self.speaker.committed < t <= now + EPS
+        return self.rule.held(now, self.speaker.committed, self._waited_for())
+
+    def _waited_for(self) -> Iterator[int | None]:
+        yield self.speaker.next_wanted()
+        yield self._next_batch()
+
+    def decision_due(self, now: float) -> bool:
+        """Whether a decision is due by ``now`` and not taken yet."""
+        return bool(self.rule.due_by(now))
+
+    def next_wake(self, now: float) -> float | None:
+        """The earliest timer it asked for after ``now`` (None: none)."""
+        return min((w for w in self.decisions.wakes if w > now), default=None)
 
     def asking(self) -> float | None:
         """The time of the decision waiting for where its base is, if one is."""
-        return self._asked_at if self._asked else None
+        return self.rule.asked
 
     def waiting(self, now: float) -> tuple[int, str] | None:
         """The oldest batch due and still incomplete, if any: (its stamp, what it lacks)."""
@@ -317,8 +285,8 @@ class RealtimeAgent:
         if t is None or t > now or self.batches.complete(t):
             return None
         if self.speaker.committed < t:
-            if self.speaker.ceiling < t:
-                known = self.speaker.ceiling
+            if self.rule.base_known < t:
+                known = self.rule.base_known
                 return t, f"batch {t} waits for its own commit: its base's events are in up to {known:g}"
             return t, f"batch {t} waits for its own commit"
         return t, f"batch {t} waits for the messages or watermarks of agents {self.batches.lacking(t)}"
@@ -331,16 +299,16 @@ class RealtimeAgent:
 
     def on_clock(self, now: float) -> list[Output]:
         """A timer fired (``WakeAt``): decisions due, then commit the time passed."""
-        self._wakes = {w for w in self._wakes if w > now + EPS}
-        due = self._due(now)
+        self.decisions.wakes = {w for w in self.decisions.wakes if w > now + EPS}
+        due = self.rule.due_by(now)
         if due:
-            self._dues.difference_update(due)
+            self.rule.due.difference_update(due)
             self._decide_at(min(due), now)
         self._commit(now)
         return self._flush(now)
 
     def on_message(self, payload: Envelope | Mark | Need | Lost | Hello, now: float) -> list[Output]:
-        """A peer's message (or the world's failure notice), as it arrives."""
+        """A peer's message (or the monitor's failure notice), as it arrives."""
         self._commit(now)
         if isinstance(payload, Envelope):
             shared = _shared(payload.message)
@@ -357,12 +325,16 @@ class RealtimeAgent:
         elif isinstance(payload, Lost):
             self.batches.accept_lost(payload)
             self._marks(self.speaker.want(payload.t), now)
-            if payload.agent == self.id and payload.incarnation == self.incarnation and not self.out:
+            if (
+                payload.agent == self.id
+                and payload.incarnation == self.life.incarnation
+                and not self.life.out
+            ):
                 self._declared_out(now)
         elif isinstance(payload, Hello) and payload.incarnation > self.comm.incarnation.get(
             payload.sender, 0
         ):
-            self._hellos[payload.sender] = payload
+            self.life.hellos[payload.sender] = payload
             self._sponsor(now)
         return self._flush(now)
 
@@ -370,31 +342,34 @@ class RealtimeAgent:
         """Peers cut off are back, and what crossed meanwhile is lost (a partition longer than
         DDS keeps a peer): its watermark again, and the batch it waits for asked for again (its
         Needs may be lost too). Its messages again are its node's to send: it keeps them as
-        sealed (``RealtimeAgentNode.readers_back``; in process, ``_Run.heal``)."""
+        sealed (``RealtimeAgentNode.readers_back``; in process, the runner's ``heal``)."""
         self._commit(now)
         self.batches.ask_again()
         if self.speaker.committed >= 0:
             self._out.append(Publish(Mark(self.id, self.speaker.committed, self.speaker.seq)))
-        if self.out and self._asked_back is not None and self._asked_back.incarnation > self.incarnation:
-            self._out.append(Publish(self._asked_back))  # out, it still asks to come back
+        life = self.life
+        if life.out and life.asked_back is not None and life.asked_back.incarnation > life.incarnation:
+            self._out.append(Publish(life.asked_back))  # out, it still asks to come back
         return self._flush(now)
 
     def on_result(self, res: GoalResult, now: float) -> list[Output]:
         if res.code == "CARRYING" and self._lifted_first(res, now):
             return self._flush(now)
-        if res.goal != self.goal_id or self.out:
+        g = self.goals
+        if res.goal != g.id or self.life.out:
             return self._flush(now)  # an older goal's (preempted) result
-        if self.remote_base and res.time <= self._decided + EPS:
+        d = self.decisions
+        if self.remote_base and not d.again and res.time <= d.last + EPS:
             # a decision at or after its time was taken without it (its base's events cross a
             # network, and one that came first made its picture look whole): that one again
-            self._decided = -1.0
+            d.redo()
         if res.outcome == REACHED:
-            if self._sweep is not None and isinstance(self.goal, Follow):
-                self.agent.search.index = self._sweep[1] + len(self.goal.path) - 1
-            self.goal, self._sweep = None, None
+            if g.sweep is not None and isinstance(g.goal, Follow):
+                self.agent.search.index = g.sweep[1] + len(g.goal.path) - 1
+            g.goal, g.sweep = None, None
             self._decide_at(res.time, now)
         elif res.outcome in (ABORTED, REFUSED):
-            self.goal, self._sweep, self._carry_started = None, None, -1
+            g.goal, g.sweep, g.lifted = None, None, -1
             task = self._task()
             if res.code == "MEMBER_FAILED":
                 if task is None:
@@ -402,10 +377,9 @@ class RealtimeAgent:
                 elif self._member_lost(task):
                     # its comm has heard of the failure already (the notice may be stamped well
                     # before the abort reached it): decide on what the comm now says
-                    self._decided = -1.0
-                    self._decide_at(now, now)
+                    self._decide_again(now)
                 else:
-                    self._blocked = task.object  # until the comm hears of the failure
+                    g.blocked = task.object  # until the comm hears of the failure
             elif res.code in ("START", "PREEMPTED", "DELIVERED") or (
                 res.code == "NOT_AT_OBJECT" and self.remote_base
             ):
@@ -413,8 +387,7 @@ class RealtimeAgent:
                 # the carry's result: the object is delivered; a hold comes after its base moved
                 # on past the object), or another client took its base over (an operator's
                 # goal): look again, decide again
-                self._decided = -1.0
-                self._decide_at(now, now)
+                self._decide_again(now)
             elif res.code == "FAILED":
                 pass  # its base was stopped: it was declared out (its notice is on the way)
             elif res.outcome == REFUSED:
@@ -423,7 +396,7 @@ class RealtimeAgent:
 
     def on_detection(self, det: Detection, now: float) -> list[Output]:
         a = self.agent
-        if self.out:
+        if self.life.out:
             return self._flush(now)
         if not any(a.news(o) for o in det.objects):
             return self._flush(now)
@@ -440,17 +413,17 @@ class RealtimeAgent:
 
     def on_carry(self, ev: CarryStarted, now: float) -> list[Output]:
         if self.id in ev.group:
-            self._carry_started = ev.object
+            self.goals.lifted = ev.object
         return self._flush(now)
 
     def on_feedback(self, fb: Feedback, now: float) -> list[Output]:
-        self._asked = False
+        self.rule.asked = None
         if fb.time > now + EPS:  # mid-move: decide when the move ends
             self._decide_at(fb.time, now)
         else:
             self._decide(fb, now)
-        if self._commit_at is not None and not self._asked:
-            t, self._commit_at = self._commit_at, None
+        if self.rule.deferred is not None and self.rule.asked is None:
+            t, self.rule.deferred = self.rule.deferred, None
             self._commit(t)
         return self._flush(now)
 
@@ -459,35 +432,39 @@ class RealtimeAgent:
     def _decide_at(self, t: float, now: float) -> None:
         """A decision is due at time t (asked for now if t has come)."""
         if t > now + EPS:
-            self._dues.add(t)
+            self.rule.due.add(t)
             self._wake(t)
             return
-        if not self._asked:
-            self._asked, self._asked_at = True, now
+        if self.rule.asked is None:
+            self.rule.asked = now
             # (its base across a network: as of when it was due — decision_time — unless that
             # goes back before its last decision or the goal it sent last)
-            back = t < max(self._goal_at, self._decided) - EPS
+            back = t < self.decisions.floor(self.goals.at) - EPS
             self._out.append(AskFeedback(t if self.remote_base and not back else now))
 
+    def _decide_again(self, now: float) -> None:
+        """Decide now, whatever it decided last."""
+        self.decisions.redo()
+        self._decide_at(now, now)
+
     def _decide(self, fb: Feedback, now: float) -> None:
-        if abs(fb.time - self._decided) < EPS:
+        if not self.decisions.took(fb.time):
             return  # one decision per moment
-        self._decided = fb.time
-        if self.out:
+        if self.life.out:
             self._say_hello(fb)
             return
         a = self.agent
         s = math.ceil(fb.time - EPS)
         self._sync(fb, s)
-        if self._status_due and self._sure_of_carry(fb, now):
+        if self.status.due and self._sure_of_carry(fb, now):
             self._status(fb, s)
         plan = a.plan(s, fb.cell)
         searching = a.state.value == SEARCHING_STATE
         if plan.settled and not (searching and any(a.news(o) for o in fb.sensed)):
             self._follow_plan(plan[0], fb)
             return
-        s = max(s, self._acted + 1)
-        self._acted = s
+        s = max(s, self.decisions.acted + 1)
+        self.decisions.acted = s
         action = a.act(Observation(self.id, s, fb.cell, fb.sensed))
         for m in a.body_messages():
             self._send(m, fb.time)
@@ -496,12 +473,12 @@ class RealtimeAgent:
         self._ask_ahead()
 
     def _sync(self, fb: Feedback, s: int) -> None:
-        a = self.agent
+        a, g = self.agent, self.goals
         a.t, a.position = s, fb.cell
         if self.remote_base:
-            a.lifted = fb.carrying if fb.carrying >= 0 else self._carry_started
-        if self._sweep is not None and fb.goal == self.goal_id and fb.index >= 0:
-            path, base = self._sweep
+            a.lifted = fb.carrying if fb.carrying >= 0 else g.lifted
+        if g.sweep is not None and fb.goal == g.id and fb.index >= 0:
+            path, base = g.sweep
             if a.search.path is path:
                 a.search.index = base + fb.index
 
@@ -523,10 +500,10 @@ class RealtimeAgent:
         a = self.agent
         if action.kind is ActionKind.MOVE:
             nxt = apply(fb.cell, action.direction)
-            g = self.goal
+            g = self.goals.goal
             if (
                 isinstance(g, Follow)
-                and fb.goal == self.goal_id
+                and fb.goal == self.goals.id
                 and 0 <= fb.index < len(g.path) - 1
                 and g.path[fb.index + 1] == nxt
                 and _searching(g.state) == _searching(action.state)
@@ -538,8 +515,7 @@ class RealtimeAgent:
             assert task is not None and task.object == action.object
             self._carry(task, action.state, fb)
         else:
-            g = self.goal
-            if isinstance(g, Follow) and can_move(action.t, a.period):
+            if isinstance(self.goals.goal, Follow) and can_move(action.t, a.period):
                 self._goal(Stand(action.state), fb, force=True)  # it would move: stop it
             else:
                 self._goal(Stand(action.state), fb)
@@ -553,18 +529,18 @@ class RealtimeAgent:
         return any(j in lost for j in task.agents if j != self.id)
 
     def _carry(self, task: Assignment, state: str, fb: Feedback) -> None:
-        if task.object == self._blocked or self._member_lost(task):
+        if task.object == self.goals.blocked or self._member_lost(task):
             # its group has lost a member: wait for the comm (to hear of it, or to re-plan)
             self._goal(Stand(state), fb)
             return
         if not self._frozen(task):
             self._goal(Stand(state), fb)  # a re-plan may still move it: wait for the comm
             return
-        g = self.goal
+        g = self.goals.goal
         if (
             self.remote_base
             and isinstance(g, Follow)
-            and fb.goal == self.goal_id
+            and fb.goal == self.goals.id
             and 0 <= fb.index < len(g.path) - 1
         ):
             # its base runs on past this cell, and a hold crossing the network would come after
@@ -579,16 +555,17 @@ class RealtimeAgent:
         taken up by step t + 1 (:meth:`Knowledge.open_entries`), and what is kept for a step is
         kept for every later one: so the task is safe to hold for once every batch up to s* − 2
         is known — taken, or complete and empty with no comm event — where s* is the first step
-        a plan keeps it for. A robot may walk to an object before that (nobody sees
-        a walk), never hold or carry it: a lagging robot never holds for a group that a re-plan
-        it has not read yet dissolved. Until then it asks for those batches (a :class:`Need`)
-        and decides again once they are in (:meth:`_flush`)."""
-        self._gate = None
+        a plan keeps it for. A robot may walk to an object before that (nobody sees a walk),
+        never hold or carry it: a lagging robot never holds for a group that a re-plan it has
+        not read yet dissolved. Until then its commitment stays below this step (the rule's
+        gate), it asks for those batches (a :class:`Need`) and decides again once they are in
+        (:meth:`_ungate`)."""
+        self.rule.gate = None
         u = self._settles(task)
         if u is None or u <= self.batches.done or self._known(u):
             return u is not None
         # (its commit stays below this step meanwhile — unless the gate needs this step itself)
-        self._gate, self._gated_at = u, (self.agent.t if u < self.agent.t - 1 else -1)
+        self.rule.gate = Gate(u, self.agent.t if u < self.agent.t - 1 else None)
         return False
 
     def _settles(self, task: Assignment) -> int | None:
@@ -653,12 +630,13 @@ class RealtimeAgent:
         self, goal: Goal, fb: Feedback, sweep: tuple[Sequence[Cell], int] | None = None, force: bool = False
     ) -> None:
         """Send ``goal`` unless the running one already does it."""
-        if self._letting_go >= 0:
+        if self.status.letting_go is not None:
             return  # its let-go is not answered yet: nothing else goes to its base meanwhile
-        if self.out:
+        if self.life.out:
             return  # its base was stopped when it was declared: nothing until it is back
-        g = self.goal
-        running = g is not None and fb.goal == self.goal_id
+        gs = self.goals
+        g = gs.goal
+        running = g is not None and fb.goal == gs.id
         if not force and running:
             if isinstance(goal, Follow) and isinstance(g, Follow) and fb.index >= 0:
                 if g.path[fb.index :] == goal.path and _searching(g.state) == _searching(goal.state):
@@ -668,17 +646,17 @@ class RealtimeAgent:
                     return
             elif isinstance(goal, Stand) and isinstance(g, Stand) and g.state == goal.state:
                 return
-        same = isinstance(goal, Stand) and not running and _finish(goal.state) == _finish(self.label)
-        if same and not self._revive:
+        same = isinstance(goal, Stand) and not running and _finish(goal.state) == _finish(gs.label)
+        if same and not gs.revive:
             return  # it stands already, and nothing about it changes
-        self._revive = False
-        self.goal_id += 1
-        self.goal = goal
-        self._sweep = sweep
-        self.label = goal.state
-        self._carry_started = -1  # a new goal: no lift of it yet (on_carry says when)
-        self._goal_at = fb.time
-        self._out.append(SendGoal(self.goal_id, goal, fb.time))
+        gs.revive = False
+        gs.id += 1
+        gs.goal = goal
+        gs.sweep = sweep
+        gs.label = goal.state
+        gs.lifted = -1  # a new goal: no lift of it yet (on_carry says when)
+        gs.at = fb.time
+        self._out.append(SendGoal(gs.id, goal, fb.time))
 
     # ------------------------------------------------------------------ failures
 
@@ -686,128 +664,102 @@ class RealtimeAgent:
         """The comm has learnt of a failure: stop what is not under way (a carry the group has
         begun, a sweep go on), read no more of the schedule until the recovery, and say so (the
         status, at the next decision)."""
-        a = self.agent
-        k = self.comm.knowledge
-        a.tasks.clear()
-        a._seen_schedule = len(k.schedule)
+        a, gs = self.agent, self.goals
+        a.stop_reading()
         # (a carry whose group has lost a member is over, even if its base has not said so yet:
         # the notice may be stamped well before the abort reaches it)
-        carry = isinstance(self.goal, Carry) and not (a.current is not None and self._member_lost(a.current))
-        going = carry and self._carry_started == self.goal.object  # type: ignore[union-attr]
+        carry = isinstance(gs.goal, Carry) and not (a.current is not None and self._member_lost(a.current))
+        going = carry and gs.lifted == gs.goal.object  # type: ignore[union-attr]
         # (its base across a network may have lifted and not said so yet: it says once it has)
-        self._unsure_carry = carry and not going and self.remote_base and a.current is not None
-        if a.current is not None and not going and not self._unsure_carry:
+        self.rule.unsure = carry and not going and self.remote_base and a.current is not None
+        if a.current is not None and not going and not self.rule.unsure:
             self._let_go(now)
         elif a.current is None and a.state in (GlobalState.RETURNING, GlobalState.FINISH):
             a.state = GlobalState.DECISION
-        self._blocked = -1
-        self._keep = a._taken
-        self._status_due = True
+        gs.blocked = -1
+        self.status.keep = a.taken
+        self.status.due = True
         self._decide_at(math.floor(now + EPS) + 1, now)
 
     def _let_go(self, now: float) -> None:
         """What it has taken up and not begun goes back into the pool; a hold is let go now (no
         lift without it)."""
-        self._give_back()
-        if isinstance(self.goal, Carry) and not self.out:
+        self.agent.give_back()
+        if isinstance(self.goals.goal, Carry) and not self.life.out:
             self._stand(now)
-
-    def _give_back(self) -> None:
-        """The task it has taken up goes back into the pool: it decides again."""
-        a = self.agent
-        a.current = None
-        a._taken -= 1
-        if a.state is not GlobalState.SEARCHING:
-            a.state = GlobalState.DECISION
 
     def _stand(self, now: float, unless_carrying: bool = False) -> None:
         """Its base stands from now (``unless_carrying``: refused once its group has lifted)."""
-        self.goal_id += 1
-        self.goal = Stand(GlobalState.DECISION.value, unless_carrying=unless_carrying)
-        self.label = GlobalState.DECISION.value
-        self._goal_at = max(self._goal_at, now)
-        self._out.append(SendGoal(self.goal_id, self.goal, now))
+        gs = self.goals
+        gs.id += 1
+        gs.goal = Stand(GlobalState.DECISION.value, unless_carrying=unless_carrying)
+        gs.label = GlobalState.DECISION.value
+        gs.at = max(gs.at, now)
+        self._out.append(SendGoal(gs.id, gs.goal, now))
 
     def _sure_of_carry(self, fb: Feedback, now: float) -> bool:
         """Whether its status can say now if its carry is under way: its base's events are in up
         to the moment it first asked (else it waits for them: :meth:`base_known`); the lift among
         them, it keeps the carry; if not, it lets go — with a let-go its base refuses if its group
         has lifted meanwhile (the two cross the network) — and says so once its base answers."""
-        if not self._unsure_carry:
+        rule, st, gs = self.rule, self.status, self.goals
+        if not rule.unsure:
             return True
-        if self._status_wait is None:  # (the moment it first asked: its status is of then)
-            self._status_wait = fb.time
-        if self.speaker.ceiling < self._status_wait - EPS:
+        if rule.status_wait is None:  # (the moment it first asked: its status is of then)
+            rule.status_wait = fb.time
+        if rule.base_known < rule.status_wait - EPS:
             return False
         task = self._task()
-        if task is None or self._carry_started == task.object:  # (lifted: its result may be in)
+        if task is None or gs.lifted == task.object:  # (lifted: its result may be in)
             return self._sure()
-        if self._letting_go < 0:
-            self._held = (self.goal_id, self.goal, self.label, self._sweep)
+        if st.letting_go is None:
+            st.held = (gs.id, gs.goal, gs.label, gs.sweep)
             self._stand(now, unless_carrying=True)
-            self._letting_go = self.goal_id
+            st.letting_go = gs.id
             return False
-        if fb.goal != self._letting_go:
+        if fb.goal != st.letting_go:
             return False  # (its base's answer is still to come)
-        self._give_back()  # its let-go took over: not lifted, and never will be
-        self._keep = self.agent._taken  # (what it keeps: without it)
+        self.agent.give_back()  # its let-go took over: not lifted, and never will be
+        st.keep = self.agent.taken  # (what it keeps: without it)
         return self._sure()
 
     def _sure(self) -> bool:
-        self._unsure_carry, self._status_wait, self._letting_go, self._held = False, None, -1, None
+        self.rule.unsure, self.rule.status_wait = False, None
+        self.status.letting_go, self.status.held = None, None
         return True
 
     def _lifted_first(self, res: GoalResult, now: float) -> bool:
         """Its let-go came after its group had lifted (refused, CARRYING): the hold goes on as
         the carry it is, and its status says so."""
-        if res.goal != self._letting_go or self._held is None:
+        st, gs = self.status, self.goals
+        if res.goal != st.letting_go or st.held is None:
             return False
-        self.goal_id, self.goal, self.label, self._sweep = self._held
+        gs.id, gs.goal, gs.label, gs.sweep = st.held
         self._sure()
-        self._decided = -1.0
-        self._decide_at(now, now)
+        self._decide_again(now)
         return True
 
     def _status(self, fb: Feedback, s: int) -> None:
         """Where and when it is free of what it keeps doing, and what of the schedule it keeps."""
-        self._status_due = False
+        self.status.due = False
         a, comm = self.agent, self.comm
         free_at, where = s + 1, fb.cell
         if a.current is not None:
             o = comm.knowledge.objects[a.current.object]
             free_at, where = max(a.current.finish, s + 1), o.destination
         elif a.state is GlobalState.SEARCHING:
-            sw = a.sweep_task or comm._sweeps_of(self.id)[0]
+            sw = a.sweep_task or comm.sweeps_of(self.id)[0]
             free_at, where = max(sw.finish, s + 1), sw.path[-1]
         stamp = stamp_of(fb.time, self.speaker.committed)
-        self._send(RtStatus(self.id, stamp, free_at, where, failure=comm.losses, keep=self._keep), fb.time)
+        status = RtStatus(self.id, stamp, free_at, where, failure=comm.losses, keep=self.status.keep)
+        self._send(status, fb.time)
 
     def _resync(self) -> None:
         """A recovery completed: its own kept entries are what it has done or is doing; the
         entries after them are new."""
-        a, comm = self.agent, self.comm
-        sched = comm.knowledge.schedule
-        kept = comm.kept_len if comm.kept_len is not None else len(sched)
-        a.tasks.clear()
-        a._seen_schedule = kept
-        a._taken = sum(1 for e in sched[:kept] if self.id in e.agents)
-        if a.current is not None and a.current not in sched[:kept]:
-            a.current = None
-            if a.state is not GlobalState.SEARCHING:
-                a.state = GlobalState.DECISION
-
-    def _replanned(self) -> None:
-        """CCP's improved planner moved entries nobody can have taken up: what it carried is
-        kept (:meth:`_frozen`), so its task list is its part of the schedule after what it has
-        taken up — unless the task it was walking to went to the new plan: it lets it go."""
-        a, comm = self.agent, self.comm
-        sched = comm.knowledge.schedule
-        if a.current is not None and not any(e is a.current for e in sched):
-            a.current = None
-            a._taken -= 1
-            if a.state is not GlobalState.SEARCHING:
-                a.state = GlobalState.DECISION
-        a._resync()  # (the lockstep agent's: its part of the schedule after what it took up)
+        comm = self.comm
+        kept = comm.kept_len if comm.kept_len is not None else len(comm.knowledge.schedule)
+        self.agent.read_kept(kept)
 
     # ------------------------------------------------------------------ membership
 
@@ -815,30 +767,32 @@ class RealtimeAgent:
         """Its own notice: it is out (what it sent beyond the notice counts for nobody). It sends
         nothing more and leaves its base alone until a member's Back readmits it; it asks to come
         back (:class:`Hello`) from where its base stands."""
-        self.out = True
-        self.goal, self._sweep, self._carry_started, self._blocked = None, None, -1, -1
-        self._decided = -1.0
-        self._decide_at(now, now)
+        self.life.out = True
+        gs = self.goals
+        gs.goal, gs.sweep, gs.lifted, gs.blocked = None, None, -1, -1
+        self._decide_again(now)
 
     def _say_hello(self, fb: Feedback) -> None:
-        if self._hello > self.incarnation:
+        life = self.life
+        if life.hello > life.incarnation:
             return  # asked already
-        self._hello = self.incarnation + 1
-        self._asked_back = Hello(self.id, self._hello, self.speaker.seq, fb.cell)
-        self._out.append(Publish(self._asked_back))
+        life.hello = life.incarnation + 1
+        life.asked_back = Hello(self.id, life.hello, self.speaker.seq, fb.cell)
+        self._out.append(Publish(life.asked_back))
 
     def _sponsor(self, now: float) -> None:
         """Answer the Hellos of robots its comm has taken out (their notices taken): a stamped
         Back each (every member sends one; the first in batch order counts)."""
-        if self.out:
+        if self.life.out:
             return
         comm = self.comm
-        for j, h in list(self._hellos.items()):
+        hellos = self.life.hellos
+        for j, h in list(hellos.items()):
             life = comm.incarnation.get(j, 0)
             if h.incarnation <= life:
-                del self._hellos[j]  # it is back already
+                del hellos[j]  # it is back already
             elif j in comm.lost and h.incarnation == life + 1 and self.batches.done >= comm.lost[j]:
-                del self._hellos[j]
+                del hellos[j]
                 back = Back(self.id, math.ceil(now - EPS), j, h.incarnation, h.seq, h.at)
                 self._send(back, now)
 
@@ -856,35 +810,26 @@ class RealtimeAgent:
     def _come_back(self, t: int, now: float) -> None:
         """Back as its next life: nothing of its old tasks (they went to others), its search over,
         free now where its base stands; it commits t (it sent nothing while out)."""
-        self.out = False
-        self.incarnation = self.comm.incarnation[self.id]
-        self.rejoins += 1
+        life = self.life
+        life.out = False
+        life.incarnation = self.comm.incarnation[self.id]
+        life.rejoins += 1
         self.speaker.committed = max(self.speaker.committed, t)
-        a, k = self.agent, self.comm.knowledge
-        a.tasks.clear()
-        a.current, a.sweep_task = None, None
-        # what is left of its old life in the schedule is done or under way by others: counted as
-        # taken (its status's ``keep`` counts its entries from the first)
-        a._seen_schedule = self.comm.rejoin_len(self.id)  # (the batch may have planned for it)
-        a._taken = sum(1 for e in k.schedule[: a._seen_schedule] if self.id in e.agents)
-        a.search.state = SearchState.DONE
-        a.state = GlobalState.DECISION
-        a.reported &= set(k.objects)  # what it said while out counted for nobody: news again
-        self._status_due, self._keep = False, 0
+        self.agent.come_back(self.comm.rejoin_len(self.id))  # (the batch may have planned for it)
+        self.status.due, self.status.keep = False, 0
         self._sure()
-        self.goal, self._sweep = None, None
-        self._revive = True  # its base was stopped: its next goal, even to stand, takes it back
-        self._decided = -1.0
-        self._decide_at(now, now)
+        self.goals.goal, self.goals.sweep = None, None
+        self.goals.revive = True  # its base was stopped: its next goal, even to stand, takes it back
+        self._decide_again(now)
 
     # ------------------------------------------------------------------ the comm side
 
     def _send(self, message, time: float) -> None:
-        if self.out:
+        if self.life.out:
             return  # it counts for nobody until it is back (its Hello said how many it sent)
         shared = _shared(message)
-        env = self.speaker.send(message, time, shared)
-        self.sent.append((env.stamp, env.seq))
+        env = self.speaker.send(message, time, shared, self.rule.base_limit())
+        self.record.said(env)
         self.batches.accept(env, shared)
         self._out.append(Publish(env))
         if shared:
@@ -898,41 +843,24 @@ class RealtimeAgent:
             self._wake(float(nxt))  # (one due already waits for its base's events: held())
 
     def _commit(self, now: float) -> None:
-        """Every event of time ≤ now is handled — unless a decision asked for is still to come
-        (then once it is taken), and no later than its base's events are in (:meth:`base_known`)."""
-        if self._asked:
-            self._commit_at = now if self._commit_at is None else max(self._commit_at, now)
+        """Commit what its rule allows at ``now`` — once the decision asked for is taken, if one
+        is still to come."""
+        if self.rule.asked is not None:
+            self.rule.defer(now)
             return
-        c = self._capped(math.floor(now + EPS))
-        if self.remote_base:  # (a decision due is taken as of its time: not committed past)
-            due = self._due(now)
-            if due:
-                c = min(c, math.ceil(min(due) - EPS) - 1)
-        self._marks(self.speaker.commit(c), now)
-
-    def _due(self, now: float) -> list[float]:
-        """The decisions due by now and not taken yet (their times)."""
-        return [d for d in self._dues if d <= now + EPS]
-
-    def _capped(self, t: int) -> int:
-        """A carry gated in step s (:meth:`_frozen`) is decided again in s once the gate opens:
-        the decision of s may still change, so it commits below s meanwhile (as in lockstep, its
-        step s comes before anything stamped s); past step s, the decision of s stands."""
-        if self._gate is not None and t <= self._gated_at:
-            return self._gated_at - 1
-        return t
+        self._marks(self.speaker.commit(self.rule.limit(now)), now)
 
     def _wake(self, t: float) -> None:
-        if t not in self._wakes:
-            self._wakes.add(t)
+        if t not in self.decisions.wakes:
+            self.decisions.wakes.add(t)
             self._out.append(WakeAt(t))
 
     def _next_batch(self) -> int | None:
         n = self.batches.next_stamp()
-        if self._event_for != self.batches.done:  # the comm changes only when it takes a batch
-            self._event_for = self.batches.done
-            self._event = self.comm.next_event(self.batches.done + 1)
-        e = self._event
+        done = self.batches.done
+        if self._event[0] != done:  # the comm changes only when it takes a batch
+            self._event = (done, self.comm.next_event(done + 1))
+        e = self._event[1]
         cands = [x for x in (n, e) if x is not None]
         return min(cands) if cands else None
 
@@ -957,20 +885,12 @@ class RealtimeAgent:
 
     def _take(self, t: int, now: float) -> None:
         msgs = self.batches.take(t)
-        self.processed.add(t)
-        self.taken_at[t] = now
-        self.max_lag = max(self.max_lag, now - t)
+        self.record.took(t, now)
         self.agent.communicate(t, msgs)
         self._readmit(t, msgs, now)
         for m in self.comm.drain():
             self._send(m, now)
-        view = self._schedule_view()
-        if view is not None:
-            self._view = view
-            self.digests[t] = Digest(
-                self.id, t, self.comm.knowledge.coordinations, _digest(repr(msgs)), _digest(view)
-            )
-            self._out.append(self.digests[t])
+        self._digest(t, msgs, self.comm.knowledge.coordinations)
         comm = self.comm
         if comm.reset:
             comm.reset = False
@@ -979,33 +899,41 @@ class RealtimeAgent:
             comm.recovered = False
             self._resync()
         if getattr(comm, "replanned", False):
-            self._replanned()
-        if self._hellos:
+            self.agent.read_replanned()
+        if self.life.hellos:
             self._sponsor(now)
         a = self.agent
-        if a.state in (GlobalState.RETURNING, GlobalState.FINISH) and a.current is None and a._unread():
+        if a.state in (GlobalState.RETURNING, GlobalState.FINISH) and a.current is None and a.has_unread():
             a.state = GlobalState.DECISION  # called back: a robot came back, and with it work
         self._decide_at(math.floor(now + EPS) + 1, now)
+
+    def _digest(self, t: int, msgs: list, coordination: int) -> None:
+        """A digest of batch t if it changed the shared view (observers compare them)."""
+        view = self._schedule_view()
+        if view is not None:
+            self._view = view
+            d = Digest(self.id, t, coordination, _digest(repr(msgs)), _digest(view))
+            self.record.digest(d)
+            self._out.append(d)
 
     def _ungate(self, now: float) -> None:
         """A carry waits for the batches up to its gate (:meth:`_frozen`): once they are known,
         decide again; until then ask for them."""
-        u = self._gate
-        if u is None:
+        if self.rule.gate is None:
             return
+        u = self.rule.gate.batch
         if not self._known(u):
             nxt = self._next_batch()
             if nxt is not None and nxt <= u:
                 return  # a batch before it is under way (the pump asks for it)
-            if not self._asked:  # its own watermark first (nothing else may wake it to commit it)
+            if self.rule.asked is None:  # its own watermark first (nothing else may wake it to commit it)
                 self._commit(now)
             if not self._known(u):
                 if self.speaker.committed >= u:
                     self._need(u)
                 return
-        self._gate = None
-        self._decided = -1.0
-        self._decide_at(now, now)
+        self.rule.gate = None
+        self._decide_again(now)
         self._wake(now)  # to commit this step once that decision and its base's events are in
 
     def _schedule_view(self) -> str | None:
@@ -1022,7 +950,7 @@ class RealtimeAgent:
     def _flush(self, now: float) -> list[Output]:
         """What to do now: first every batch that became complete (its reactions included) —
         not while a decision asked for is still to come: the body acts before the comm moves on."""
-        if not self._asked:
+        if self.rule.asked is None:
             self._pump(now)
             self._ungate(now)
         out, self._out = self._out, []

@@ -184,8 +184,8 @@ class RtRecovery:
         ):
             self.statuses[msg.sender] = msg
 
-    def _sweeps_of(self, agent: int) -> list[Sweep]:
-        return super()._sweeps_of(agent)  # type: ignore[misc]
+    def sweeps_of(self, agent: int) -> list[Sweep]:
+        return super().sweeps_of(agent)  # type: ignore[misc]
 
     def _lose(self, agent: int, t: int) -> None:
         """The notice of ``agent``'s failure, stamped t: its unsensed cells become orphaned sweeps
@@ -203,7 +203,7 @@ class RtRecovery:
         self._alive = None
         k.searched.discard(agent)
         if self.owed[agent] > 0:
-            sweeps = self._sweeps_of(agent)
+            sweeps = self.sweeps_of(agent)
             first = len(sweeps) - self.owed[agent]  # its sweeps are done in order
             period = self.team.periods[self.team.index(agent)] if self.team.periods else 1
             for i, sw in enumerate(sweeps[first:]):
@@ -258,7 +258,7 @@ class RtRecovery:
                     early = [f for f, _ in self._episode if e.start > f]
                     key = (min(early) if early else self._episode[-1][0], 1, pos)
                     self._keyed.append((key, tuple(e.path[e.walk :])))
-                    self._sweeps_of(e.agent).remove(e)
+                    self.sweeps_of(e.agent).remove(e)
                     self.owed[e.agent] -= 1
                     if self.owed[e.agent] == 0:
                         k.searched.add(e.agent)
@@ -294,7 +294,7 @@ class RtRecovery:
             j = self.team.agent_ids[i]
             sw = Sweep.take_over(j, (int(loc[i][0]), int(loc[i][1])), int(cost[i]), cells, int(periods[i]))
             k.schedule.append(sw)
-            self._sweeps_of(j).append(sw)
+            self.sweeps_of(j).append(sw)
             self.owed[j] += 1
             k.searched.discard(j)
             k.free_at[i] = sw.finish

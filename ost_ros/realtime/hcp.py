@@ -33,8 +33,8 @@ from ost_ros.model import Cell
 from ost_ros.protocols.hcp.agent import WAIT, Action3, HcpAgent, HcpState
 from ost_ros.protocols.hcp.comm import HcpComm, HelpGroup
 from ost_ros.protocols.hcp.messages import HelpOffer, HelpRelease, HelpRequest
-from ost_ros.realtime.agent import EPS, RealtimeAgent, _digest
-from ost_ros.realtime.messages import Digest, ObjectInfo
+from ost_ros.realtime.agent import EPS, RealtimeAgent
+from ost_ros.realtime.messages import ObjectInfo
 from ost_ros.realtime.world import ABORTED, REFUSED, Carry, Detection, Feedback, GoalResult
 from ost_ros.search import SearchModule, route
 
@@ -265,10 +265,10 @@ class RtHcpRuntime(RealtimeAgent):
         tell an HCP robot otherwise, and deciding again would ask for the same lift. (Refused
         because its base was not where the object lies — its goal came after the base had moved
         on, as over a network — it decides again, and walks back.)"""
-        g = self.goal
+        g = self.goals.goal
         cur = self.agent.current
         gone = (
-            res.goal == self.goal_id
+            res.goal == self.goals.id
             and isinstance(g, Carry)
             and res.outcome in (ABORTED, REFUSED)
             and res.code in _NOT_THERE
@@ -276,17 +276,15 @@ class RtHcpRuntime(RealtimeAgent):
         )
         if gone and isinstance(g, Carry):
             self.agent.let_go(g.object, f"{res.code.lower()} at {res.time:g}: {res.reason}")
-        elif res.goal == self.goal_id and isinstance(g, Carry) and res.code == "NOT_AT_OBJECT":
+        elif res.goal == self.goals.id and isinstance(g, Carry) and res.code == "NOT_AT_OBJECT":
             self.agent.walk_back(g.object)  # (not a fault: counted, no warning)
-            self.goal, self._sweep, self._carry_started = None, None, -1
-            self._decided = -1.0
-            self._decide_at(now, now)
+            self.goals.goal, self.goals.sweep, self.goals.lifted = None, None, -1
+            self._decide_again(now)
             return self._flush(now)
         out = super().on_result(res, now)
         if not gone or self.out:
             return out
-        self._decided = -1.0
-        self._decide_at(now, now)  # (what it does instead)
+        self._decide_again(now)  # (what it does instead)
         return out + self._flush(now)
 
     def on_detection(self, det: Detection, now: float) -> list:
@@ -313,43 +311,37 @@ class RtHcpRuntime(RealtimeAgent):
         a = self.agent
         a.sensed_until = t
         if a.part_wait is not None and t >= a.part_wait:
-            self._dues.add(t)  # its part may be done now: decide (its caller's clock comes)
+            self.rule.due.add(t)  # its part may be done now: decide (its caller's clock comes)
 
     def held(self, now: float) -> bool:
         return super().held(now) or self.agent.part_wait is not None
 
     def _sync(self, fb: Feedback, s: int) -> None:
         super()._sync(fb, s)
-        g = self.goal
-        self.agent.holding = g.object if isinstance(g, Carry) and fb.goal == self.goal_id else -1
+        g = self.goals.goal
+        self.agent.holding = g.object if isinstance(g, Carry) and fb.goal == self.goals.id else -1
         self.agent.resume_at(fb.cell)
         self.agent.view = self.batches.done  # what its decisions are taken on
 
     def _send(self, message, time: float) -> None:
         super()._send(message, time)
-        if isinstance(message, HelpOffer) and self.sent:
-            self.agent.offer_stamp = self.sent[-1][0]
+        if isinstance(message, HelpOffer) and self.record.last is not None:
+            self.agent.offer_stamp = self.record.last[0]
 
     def _sponsor(self, now: float) -> None:
         """No robot comes back under HCP: a robot declared out stays out (its parts inherited)."""
-        self._hellos.clear()
+        self.life.hellos.clear()
 
     def _take(self, t: int, now: float) -> None:
         msgs = self.batches.take(t)
-        self.processed.add(t)
-        self.taken_at[t] = now
-        self.max_lag = max(self.max_lag, now - t)
+        self.record.took(t, now)
         a = self.agent
         a.communicate(t, msgs)
         if any(isinstance(m, AgentLost) for m in msgs):
-            self._blocked = -1  # the comm knows of the failure: its groups are settled again
+            self.goals.blocked = -1  # the comm knows of the failure: its groups are settled again
         for m in a.body_messages():
             self._send(m, now)
-        view = self._schedule_view()
-        if view is not None:
-            self._view = view
-            self.digests[t] = Digest(self.id, t, len(a.comm.groups), _digest(repr(msgs)), _digest(view))
-            self._out.append(self.digests[t])
+        self._digest(t, msgs, len(a.comm.groups))
         self._decide_at(math.floor(now + EPS) + 1, now)
 
     def _schedule_view(self) -> str | None:

@@ -21,22 +21,16 @@ from ost_ros.engines.common import finish_result, step_limit
 from ost_ros.model import Scenario
 from ost_ros.negotiation.slots import NegotiationSettings
 from ost_ros.protocols import ProtocolError, check
-from ost_ros.realtime.agent import (
-    AskFeedback,
-    Output,
-    Publish,
-    RealtimeAgent,
-    RtScheduleAgent,
-    SendGoal,
-    WakeAt,
-    decision_time,
-)
+from ost_ros.realtime.agent import RealtimeAgent, Record
 from ost_ros.realtime.base import BaseMirror, mirror_of
+from ost_ros.realtime.body import RtScheduleAgent
 from ost_ros.realtime.comms import RtAuctionComm, RtCcpComm, RtGreedyComm, RtNcpComm
 from ost_ros.realtime.hcp import RtHcpAgent, RtHcpRuntime
 from ost_ros.realtime.membership import ABSENT, DEAD, IN, MONITOR, OUT, SILENT, Monitor
-from ost_ros.realtime.messages import Back, Digest, Envelope, Mark, Need, ObjectInfo
+from ost_ros.realtime.messages import Back, Envelope, Mark, Need, ObjectInfo
 from ost_ros.realtime.net import DELIVER, KILL, WAKE, WORLD, EventQueue, Latency, Network, Split
+from ost_ros.realtime.outputs import AskFeedback, Output, Publish, SendGoal, WakeAt
+from ost_ros.realtime.remote import BaseLink
 from ost_ros.realtime.world import CarryStarted, Detection, Feedback, GoalResult, RealtimeWorld
 from ost_ros.result import RunResult
 from ost_ros.team import TeamInfo
@@ -66,7 +60,7 @@ def _check_options(protocol: str, **given: bool) -> None:
             raise ProtocolError(why)
 
 
-def check_realtime(protocol: str, policy: CoordinationPolicy | None = None, settings: Any = None) -> None:
+def check_realtime(protocol: str, policy: CoordinationPolicy | None = None) -> None:
     """One-line :class:`ProtocolError` if the protocol (or its options) cannot run without a
     barrier."""
     check(protocol, policy=policy)
@@ -78,7 +72,7 @@ def make_agents(
     scenario: Scenario, protocol: str, policy: CoordinationPolicy, settings: Any = None, monitor: bool = False
 ) -> list[RealtimeAgent]:
     """Every robot's realtime runtime, in id order (``monitor``: a membership monitor takes part)."""
-    check_realtime(protocol, policy, settings)
+    check_realtime(protocol, policy)
     check(protocol, scenario=scenario, policy=policy)
     team = TeamInfo.from_scenario(scenario)
     return [make_agent(team, a.id, protocol, policy, settings, monitor) for a in scenario.agents]
@@ -91,10 +85,14 @@ def make_agent(
     policy: CoordinationPolicy,
     settings: Any = None,
     monitor: bool = False,
+    whole_record: bool = True,
 ) -> RealtimeAgent:
-    """One robot's realtime runtime (an agent node builds its own; the protocol already checked)."""
+    """One robot's realtime runtime (an agent node builds its own; the protocol already
+    checked). ``whole_record``: it keeps what the in-process run's report is computed from (every
+    batch's digest and time, every message's stamp); an agent node keeps counts only."""
+    record = Record(whole=whole_record)
     if protocol == "hcp":
-        return RtHcpRuntime(RtHcpAgent(agent_id, team), team.agent_ids, monitor=monitor)
+        return RtHcpRuntime(RtHcpAgent(agent_id, team), team.agent_ids, monitor=monitor, record=record)
     comm: RtCcpComm | RtNcpComm | RtAuctionComm | RtGreedyComm
     if protocol == "greedy":
         comm = RtGreedyComm(agent_id, team, policy)
@@ -104,7 +102,8 @@ def make_agent(
         comm = RtNcpComm(agent_id, team, policy, settings=settings or NegotiationSettings())
     else:
         comm = RtAuctionComm(agent_id, team, policy)
-    return RealtimeAgent(RtScheduleAgent(agent_id, team, comm, protocol), team.agent_ids, monitor=monitor)
+    agent = RtScheduleAgent(agent_id, team, comm, protocol)
+    return RealtimeAgent(agent, team.agent_ids, monitor=monitor, record=record)
 
 
 @dataclass
@@ -193,6 +192,160 @@ class Observer(Protocol):
     def end(self, run: _Run) -> None: ...
 
 
+# ----------------------------------------------------------------------------- events
+# What a robot's runtime is called with (held, in order, while its process is stopped):
+
+
+@dataclass(frozen=True)
+class Start:
+    """The run begins."""
+
+
+@dataclass(frozen=True)
+class Clock:
+    """A timer it asked for (``WakeAt``), or its base's clock: ``on_clock``."""
+
+
+@dataclass(frozen=True)
+class Message:
+    """A peer's message, a watermark, a need, a Hello or a notice arrives."""
+
+    payload: Any
+
+
+@dataclass(frozen=True)
+class Again:
+    """Peers cut off by a partition that lost what crossed it are back."""
+
+
+@dataclass(frozen=True)
+class Base:
+    """One of its base's events, heard at once (its base is its own hardware)."""
+
+    event: GoalResult | Detection | CarryStarted
+
+
+@dataclass(frozen=True)
+class BaseIn:
+    """One of its base's events, across a network (:class:`~ost_ros.realtime.remote.BaseLink`)."""
+
+    event: Any
+    sensed: tuple[ObjectInfo, ...]
+
+
+Input = Start | Clock | Message | Again | Base | BaseIn
+
+
+@dataclass(frozen=True)
+class Call:
+    """Robot ``agent`` (or the monitor) is called with ``input``."""
+
+    agent: int
+    input: Input
+
+
+# The run's own events (the KILL phase: before the world's and the robots' at the same time):
+
+
+@dataclass(frozen=True)
+class Kill:
+    agent: int
+
+
+@dataclass(frozen=True)
+class Declare:
+    """A dead robot's notice, ``declare_after`` steps after it died."""
+
+    agent: int
+
+
+@dataclass(frozen=True)
+class Freeze:
+    agent: int
+    steps: float
+
+
+@dataclass(frozen=True)
+class Thaw:
+    agent: int
+
+
+@dataclass(frozen=True)
+class DeclareOut:
+    """A robot silent past the failure timeout."""
+
+    agent: int
+
+
+@dataclass(frozen=True)
+class Heal:
+    """Partition ``split`` (which lost what crossed it) heals."""
+
+    split: int
+
+
+@dataclass(frozen=True)
+class GoalArrives:
+    agent: int
+    goal: SendGoal
+    life: int
+
+
+@dataclass(frozen=True)
+class BaseArrives:
+    agent: int
+    event: Any
+    sensed: tuple[ObjectInfo, ...]
+
+
+@dataclass(frozen=True)
+class WorldDue:
+    """The world's bases have something to do now."""
+
+
+# ----------------------------------------------------------------------------- the run's state
+
+
+@dataclass
+class _Members:
+    """Who is in the team: who lives, the monitor (runs with silences or joins), who is silent
+    (its process stopped, and what came for it meanwhile), and every notice and Back sent."""
+
+    live: set[int]
+    monitor: Monitor | None = None
+    monitor_wakes: set[float] = field(default_factory=set)
+    failure_timeout: float = 10.0  # steps of silence after which a live robot is declared out
+    declare_after: float = 0.0  # steps from a robot's death to the notice of it (as over DDS)
+    # A silent robot: until when, and what came for it meanwhile (its messages, timers and base
+    # events wait, as in a stopped process's sockets)
+    frozen: dict[int, float] = field(default_factory=dict)
+    held: dict[int, list[Input]] = field(default_factory=dict)
+    notice_log: dict[tuple[int, int], tuple[int, int]] = field(
+        default_factory=dict
+    )  # (agent, life) -> (stamp, seq)
+    backs: dict[tuple[int, int], tuple[int, int, int]] = field(
+        default_factory=dict
+    )  # -> (stamp, sender, seq)
+    sent: dict[int, list[Envelope]] = field(default_factory=dict)  # agent -> its messages, as sent
+
+
+@dataclass
+class _Bases:
+    """The robots' bases as each robot knows them: its own picture (checked against the world at
+    every decision: ``errors``), how late it knows its base's events (``lag``: as an agent node's
+    base clock), and — bases across a network (``remote``) — each robot's link to its base, the
+    arrivals due on each way, the events on their way and the next base clock."""
+
+    mirrors: dict[int, BaseMirror] = field(default_factory=dict)
+    errors: list[str] = field(default_factory=list)
+    lag: float = 0.0
+    remote: Network | None = None
+    links: dict[int, BaseLink] = field(default_factory=dict)
+    due: dict[tuple[str, int], float] = field(default_factory=dict)  # (way, agent) -> last arrival
+    in_flight: dict[int, list[float]] = field(default_factory=dict)  # agent -> its events' times
+    ticks: dict[int, float] = field(default_factory=dict)  # agent -> its next base clock
+
+
 @dataclass
 class _Run:
     world: RealtimeWorld
@@ -200,40 +353,14 @@ class _Run:
     net: Network
     queue: EventQueue
     report: RealtimeReport
-    live: set[int]
-    digests: list[Digest] = field(default_factory=list)
-    notices: dict[int, int] = field(default_factory=dict)  # failed agent -> its notice's stamp
-    # Each robot's own picture of its base (as an agent node keeps it, from its base's events),
-    # checked against the world at every decision: differences are listed here.
-    mirrors: dict[int, BaseMirror] = field(default_factory=dict)
-    mirror_errors: list[str] = field(default_factory=list)
-    # How far behind its clock a robot knows its base's events (an agent node's base clock comes
-    # that late): it commits no later than now - base_lag (0: its base is its own hardware).
-    base_lag: float = 0.0
-    declare_after: float = 0.0  # steps from a robot's death to the world's notice of it
-    failure_timeout: float = 10.0  # steps of silence after which a live robot is declared out
-    # A silent robot (its process stopped): until when, and what came for it meanwhile (its
-    # messages, timers and base events wait, as in a stopped process's sockets)
-    frozen: dict[int, float] = field(default_factory=dict)
-    held: dict[int, list[tuple[str, Any]]] = field(default_factory=dict)
-    _monitor_wakes: set[float] = field(default_factory=set)
-    monitor: Monitor | None = None  # the membership monitor (runs with silences or joins)
-    notice_log: dict[tuple[int, int], tuple[int, int]] = field(
-        default_factory=dict
-    )  # (agent, life) -> (stamp, seq)
-    backs: dict[tuple[int, int], tuple[int, int, int]] = field(
-        default_factory=dict
-    )  # -> (stamp, sender, seq)
-    _ticks: dict[int, float] = field(default_factory=dict)  # agent -> its next base clock (base_lag)
-    sent: dict[int, list[Envelope]] = field(default_factory=dict)  # agent -> its messages, as sent
-    _world_times: set[float] = field(default_factory=set)
+    members: _Members
+    bases: _Bases = field(default_factory=_Bases)
     observer: Observer | None = None  # watches the run (reads only)
-    # Bases across a network (as an agent node's): goals reach the world and base events reach
-    # their robot this late, each in order; a robot decides on its own picture (its mirror).
-    remote: Network | None = None
-    _due: dict[tuple[str, int], float] = field(default_factory=dict)  # (way, agent) -> last arrival
-    _in_flight: dict[int, list[float]] = field(default_factory=dict)  # agent -> its events' times
-    _asking: dict[int, float] = field(default_factory=dict)  # agent -> a decision waiting (its at)
+    _world_times: set[float] = field(default_factory=set)
+
+    @property
+    def live(self) -> set[int]:
+        return self.members.live
 
     def team_at(self, now: float) -> tuple[dict[int, str], Split | None]:
         """Who is in the team at ``now`` as an observer sees it — per robot IN, SILENT (its
@@ -248,255 +375,14 @@ class _Run:
                 team[a] = ABSENT
             elif a in self.world.outs:
                 team[a] = OUT
-            elif a in self.frozen:
+            elif a in self.members.frozen:
                 team[a] = SILENT
             else:
                 team[a] = IN
         split = next((sp for sp in self.net.splits if sp.start <= now < sp.start + sp.steps), None)
         return team, split
 
-    def base_event(self, ev: Any, now: float) -> None:
-        """A base's event for the robots' pictures (a tracking world's GoalStarted and Stalled go
-        only there); with bases across a network, on its way to its robots (:meth:`base_in`)."""
-        if self.remote is not None:
-            there: tuple[ObjectInfo, ...] = ()  # (with a result: what it senses where it stands)
-            if isinstance(ev, GoalResult) and ev.outcome in ("reached", "aborted"):
-                there = self.world.feedback(ev.agent, ev.time).sensed
-            for j in ev.group if isinstance(ev, CarryStarted) else (ev.agent,):
-                self._in_flight.setdefault(j, []).append(now)
-                self.queue.push(self._arrival("base", j, now), KILL, ("base_arrives", j, ev, there))
-            return
-        if not self.mirrors:
-            return
-        if isinstance(ev, CarryStarted):
-            for j in ev.group:
-                if j in self.mirrors:
-                    self.mirrors[j].take(ev)
-        elif ev.agent in self.mirrors:
-            sensed: tuple[ObjectInfo, ...] = ()
-            if isinstance(ev, GoalResult) and ev.outcome in ("reached", "aborted"):
-                sensed = self.world.feedback(ev.agent, ev.time).sensed
-            self.mirrors[ev.agent].take(ev, sensed)
-
-    def check_mirror(self, agent: int, fb: Feedback) -> None:
-        m = self.mirrors.get(agent)
-        if m is None:
-            return
-        mine = m.feedback(fb.time) if m.fresh else None
-        if mine is None or (mine.time, mine.cell, mine.goal, mine.index, mine.carrying) != (
-            fb.time,
-            fb.cell,
-            fb.goal,
-            fb.index,
-            fb.carrying,
-        ):
-            self.mirror_errors.append(f"agent {agent}: world {fb}, mirror {mine}")
-
-    def dispatch(self, agent: int, outputs: list[Output], now: float) -> None:
-        ra = self.agents[agent]
-        for o in outputs:
-            if agent not in self.live:
-                return
-            if isinstance(o, Publish):
-                self.publish(agent, o.payload, now)
-            elif isinstance(o, SendGoal):
-                self.send_goal(agent, o, now)
-            elif isinstance(o, AskFeedback) and self.remote is not None:
-                self.ask(agent, o.at, now)
-            elif isinstance(o, AskFeedback):
-                fb = self.world.feedback(agent, o.at)
-                if not ra.out:
-                    self.check_mirror(agent, fb)
-                self.dispatch(agent, ra.on_feedback(fb, now), now)
-            elif isinstance(o, WakeAt):
-                self.queue.push(max(o.time, now), WAKE, ("wake", agent))
-            elif isinstance(o, Digest):
-                self.digests.append(o)
-        # (with bases across a network, their clock comes at least once a step)
-        lag = self.base_lag or (max(self.remote.latency.steps, 1.0) if self.remote is not None else 0.0)
-        if lag and agent in self.live and ra.held(now) and self._ticks.get(agent, -1.0) <= now:
-            # its base's clock tells it more base_lag later (an agent node's base clock)
-            self._ticks[agent] = now + lag
-            self.queue.push(now + lag, WAKE, ("wake", agent))
-        self.schedule_world()
-
-    def publish(self, agent: int, p: Any, now: float) -> None:
-        if isinstance(p, Envelope):
-            self.sent.setdefault(agent, []).append(p)  # (kept as sent: said again after a cut)
-        if isinstance(p, Mark):
-            self.report.marks += 1
-        elif isinstance(p, Need):
-            self.report.needs += 1
-        elif isinstance(p, Envelope) and isinstance(p.message, Back):
-            self.back_sent(p, now)
-        self.net.send(now, p, [j for j in sorted(self.live) if j != agent] + self._monitor_ids)
-
-    def send_goal(self, agent: int, o: SendGoal, now: float) -> None:
-        if agent in self.mirrors:
-            self.mirrors[agent].sent(o.id, o.goal)
-        life = self.agents[agent].incarnation
-        if self.remote is not None:
-            self.queue.push(self._arrival("goal", agent, now), KILL, ("goal_arrives", agent, o, life))
-            return
-        for r in self.world.goal(agent, o.id, o.goal, o.at, life):
-            self.base_event(r, now)
-            if isinstance(r, GoalResult):
-                self.dispatch(r.agent, self.agents[r.agent].on_result(r, now), now)
-
-    # ------------------------------------------------------------------ bases across a network
-
-    def across_a_network(self, delay: Latency | None, seed: int) -> None:
-        """Every robot's base across a network, ``delay`` away (its own draws: the messages'
-        stay as they were); None: each its own hardware."""
-        if delay is None:
-            return
-        self.remote = Network(self.queue, delay, seed + 7919)
-        self.report.base_delay = delay
-        for ra in self.agents.values():
-            ra.remote_base = True
-
-    def _arrival(self, way: str, agent: int, now: float) -> float:
-        """When something sent now on ``way`` (goals to the world, events to a robot) arrives:
-        its own delay, after everything sent before it on the same way (one reliable topic)."""
-        assert self.remote is not None
-        at = max(self._due.get((way, agent), 0.0), now + self.remote.delay())
-        self._due[(way, agent)] = at
-        return at
-
-    def goal_arrives(self, agent: int, o: SendGoal, life: int, now: float) -> None:
-        """A robot's goal reaches the world: it takes over when the world node takes it over
-        (:meth:`RealtimeWorld.takeover`: at its decision's time if less than a step ago)."""
-        for r in self.world.goal(agent, o.id, o.goal, self.world.takeover(agent, o.goal, o.at, now), life):
-            self.base_event(r, now)
-        self.schedule_world()
-
-    def base_arrives(self, agent: int, ev: Any, sensed: tuple[ObjectInfo, ...], now: float) -> None:
-        self._in_flight[agent].pop(0)
-        self.call(agent, "base_in", (ev, sensed), now)
-
-    def base_in(self, agent: int, ev: Any, sensed: tuple[ObjectInfo, ...], now: float) -> None:
-        """One of its base's events reaches a robot, as an agent node takes it: its picture
-        first, then the runtime's callback, then what it may commit, then the decision that
-        waited for its picture (:meth:`ask`)."""
-        ra = self.agents[agent]
-        if not isinstance(ev, Detection):
-            self.mirrors[agent].take(ev, sensed)
-        if isinstance(ev, Detection):
-            out = ra.on_detection(ev, now)
-        elif isinstance(ev, CarryStarted):
-            out = ra.on_carry(ev, now)
-        elif isinstance(ev, GoalResult):
-            out = ra.on_result(ev, now)
-        else:
-            out = []
-        self.dispatch(agent, out, now)
-        ra.base_known(self._known(agent, now))
-        if agent in self._asking:
-            self.ask(agent, self._asking.pop(agent), now)
-        if ra.held(now) or any(d <= now for d in ra._dues):
-            self.dispatch(agent, ra.on_clock(now), now)
-
-    def _known(self, agent: int, now: float) -> float:
-        """How far a robot has its base's events: up to the first still on its way (its base's
-        clock says as much over DDS), and no further than that clock has come."""
-        assert self.remote is not None
-        known = now - self.remote.latency.steps
-        due = self.world.next_time()
-        if due is not None and due <= now:  # the world has not moved its bases on to now yet
-            known = min(known, due - 1e-6)
-        flying = self._in_flight.get(agent)
-        return min(known, flying[0] - 1e-6) if flying else known
-
-    def ask(self, agent: int, at: float, now: float) -> None:
-        """A decision asks where its base is: its picture answers, once it holds then (as an
-        agent node's ``decide``)."""
-        ra = self.agents[agent]
-        t = decision_time(at, now)
-        m = self.mirrors[agent]
-        if not m.settled(max(t, now)) and not ra.out:  # (a route over by now: its result first)
-            self._asking[agent] = at
-            return
-        self.dispatch(agent, ra.on_feedback(m.feedback(t), now), now)
-
-    def schedule_world(self) -> None:
-        t = self.world.next_time()
-        if t is not None and t not in self._world_times:
-            self._world_times.add(t)
-            self.queue.push(t, WORLD, ("world",))
-
-    def world_events(self, now: float) -> None:
-        self._world_times.discard(now)
-        for ev in self.world.advance(now):
-            self.base_event(ev, now)
-            if self.remote is not None:
-                continue
-            if isinstance(ev, GoalResult):
-                self.call(ev.agent, "on_result", ev, now)
-            elif isinstance(ev, Detection):
-                self.call(ev.agent, "on_detection", ev, now)
-            elif isinstance(ev, CarryStarted):
-                for j in ev.group:
-                    self.call(j, "on_carry", ev, now)
-        self.schedule_world()
-
-    @property
-    def _monitor_ids(self) -> list[int]:
-        return [MONITOR] if self.monitor is not None else []
-
-    def monitor_hears(self, payload: Any, now: float) -> None:
-        """The monitor hears a broadcast (or its timer fires: None): it commits what it can and
-        announces what is wanted; a Back for a dead robot has it declared again, for that life."""
-        m = self.monitor
-        assert m is not None
-        marks = m.tick(now) if payload is None else m.hear(payload, now)
-        for mark in marks:
-            self.report.marks += 1
-            self.net.send(now, mark, sorted(self.live))
-        nxt = m.next_wanted()
-        if nxt is not None and nxt > now and nxt not in self._monitor_wakes:
-            self._monitor_wakes.add(nxt)
-            self.queue.push(float(nxt), WAKE, ("wake", MONITOR))
-        back = payload.message if isinstance(payload, Envelope) else None
-        if isinstance(back, Back) and back.agent not in self.live:
-            self.declare(back.agent, now)
-
-    def call(self, agent: int, method: str, arg: Any, now: float) -> None:
-        """Robot ``agent``'s callback, now — or when it runs again, if it is silent."""
-        if agent == MONITOR and self.monitor is not None:
-            self._monitor_wakes.discard(now)
-            self.monitor_hears(arg if method == "on_message" else None, now)
-            return
-        if agent not in self.live:
-            return
-        if agent in self.frozen:
-            self.held.setdefault(agent, []).append((method, arg))
-            return
-        ra = self.agents[agent]
-        if method == "start" and self.remote is not None:
-            # what its base senses where it stands (the world node's first event), on its way
-            fb = self.world.feedback(agent, now)
-            if fb.sensed:
-                self.base_event(Detection(agent, now, fb.cell, fb.sensed, fb.sensed), now)
-        if self.remote is not None:
-            ra.base_known(self._known(agent, now))
-        elif self.base_lag:
-            ra.base_known(now - self.base_lag)
-        if method == "base_in":
-            ev, sensed = arg
-            self.base_in(agent, ev, sensed, now)
-            return
-        if method == "again":
-            self.resend(agent, now)
-            out = ra.again(now)
-        elif method == "start":
-            out = ra.start(now)
-        elif method == "on_clock":
-            out = ra.on_clock(now)
-        else:
-            out = getattr(ra, method)(arg, now)
-        self.dispatch(agent, out, now)
-        if self.remote is not None and method != "on_clock" and any(d <= now + 1e-9 for d in ra._dues):
-            self.dispatch(agent, ra.on_clock(now), now)  # (its base's clock came: a node fires)
+    # ------------------------------------------------------------------ the loop
 
     def loop(self, limit: float) -> tuple[str | None, float, float | None]:
         """Events in time order until the world is done at the end of a moment (as the lockstep
@@ -521,17 +407,262 @@ class _Run:
                 self.observer.advance(self, now, t)
             now = t
             self.report.events += 1
-            if phase == WORLD:
-                self.world_events(t)
-            elif phase == KILL:
-                getattr(self, ev[0])(*ev[1:], t)
-            elif phase == WAKE:
-                self.call(ev[1], "start" if ev[0] == "start" else "on_clock", None, t)
-            elif phase == DELIVER:
+            if phase == DELIVER:  # (the network's own events: receiver, payload)
                 receiver, payload = ev
                 if receiver in self.live or receiver == MONITOR:
                     self.report.copies += 1
-                self.call(receiver, "on_message", payload, t)
+                self.call(receiver, Message(payload), t)
+            else:
+                self.handle(ev, t)
+
+    def handle(self, ev: Any, now: float) -> None:
+        """One event of the run's own."""
+        match ev:
+            case Call(agent, what):
+                self.call(agent, what, now)
+            case WorldDue():
+                self.world_events(now)
+            case Kill(agent):
+                self.kill(agent, now)
+            case Declare(agent):
+                self.declare(agent, now)
+            case Freeze(agent, steps):
+                self.freeze(agent, steps, now)
+            case Thaw(agent):
+                self.thaw(agent, now)
+            case DeclareOut(agent):
+                self.declare_out(agent, now)
+            case Heal(k):
+                self.heal(k, now)
+            case GoalArrives(agent, goal, life):
+                self.goal_arrives(agent, goal, life, now)
+            case BaseArrives(agent, event, sensed):
+                self.bases.in_flight[agent].pop(0)
+                self.call(agent, BaseIn(event, sensed), now)
+            case _:
+                raise TypeError(f"no such event: {ev!r}")
+
+    def call(self, agent: int, what: Input, now: float) -> None:
+        """Robot ``agent``'s runtime called with ``what``, now — or when it runs again, if it is
+        silent (the monitor: it hears a broadcast, or its timer fires)."""
+        m = self.members
+        if agent == MONITOR and m.monitor is not None:
+            m.monitor_wakes.discard(now)
+            self.monitor_hears(what.payload if isinstance(what, Message) else None, now)
+            return
+        if agent not in self.live:
+            return
+        if agent in m.frozen:
+            m.held.setdefault(agent, []).append(what)
+            return
+        ra = self.agents[agent]
+        remote = self.bases.remote is not None
+        if isinstance(what, Start) and remote:
+            # what its base senses where it stands (the world node's first event), on its way
+            fb = self.world.feedback(agent, now)
+            if fb.sensed:
+                self.base_event(Detection(agent, now, fb.cell, fb.sensed, fb.sensed), now)
+        if remote:
+            ra.base_known(self._known(agent, now))
+        elif self.bases.lag:
+            ra.base_known(now - self.bases.lag)
+        if isinstance(what, BaseIn):
+            self.base_in(agent, what.event, what.sensed, now)
+            return
+        if isinstance(what, Again):
+            self.resend(agent, now)
+        self.dispatch(agent, self._answer(ra, what, now), now)
+        if remote and not isinstance(what, Clock) and ra.decision_due(now):
+            self.dispatch(agent, ra.on_clock(now), now)  # (its base's clock came: a node fires)
+
+    @staticmethod
+    def _answer(ra: RealtimeAgent, what: Input, now: float) -> list[Output]:
+        """The runtime's callback for ``what``."""
+        match what:
+            case Again():
+                return ra.again(now)
+            case Start():
+                return ra.start(now)
+            case Clock():
+                return ra.on_clock(now)
+            case Message(payload):
+                return ra.on_message(payload, now)
+            case Base(GoalResult() as res):
+                return ra.on_result(res, now)
+            case Base(Detection() as det):
+                return ra.on_detection(det, now)
+            case Base(CarryStarted() as carry):
+                return ra.on_carry(carry, now)
+        raise TypeError(f"no such input: {what!r}")
+
+    def dispatch(self, agent: int, outputs: list[Output], now: float) -> None:
+        """What a robot's runtime asked for, in order."""
+        ra = self.agents[agent]
+        bases = self.bases
+        for o in outputs:
+            if agent not in self.live:
+                return
+            if isinstance(o, Publish):
+                self.publish(agent, o.payload, now)
+            elif isinstance(o, SendGoal):
+                self.send_goal(agent, o, now)
+            elif isinstance(o, AskFeedback) and bases.remote is not None:
+                self.dispatch(agent, bases.links[agent].decide(o.at, now), now)
+            elif isinstance(o, AskFeedback):
+                fb = self.world.feedback(agent, o.at)
+                if not ra.out:
+                    self.check_mirror(agent, fb)
+                self.dispatch(agent, ra.on_feedback(fb, now), now)
+            elif isinstance(o, WakeAt):
+                self.queue.push(max(o.time, now), WAKE, Call(agent, Clock()))
+        # (with bases across a network, their clock comes at least once a step)
+        lag = bases.lag or (max(bases.remote.latency.steps, 1.0) if bases.remote is not None else 0.0)
+        if lag and agent in self.live and ra.held(now) and bases.ticks.get(agent, -1.0) <= now:
+            # its base's clock tells it more base_lag later (an agent node's base clock)
+            bases.ticks[agent] = now + lag
+            self.queue.push(now + lag, WAKE, Call(agent, Clock()))
+        self.schedule_world()
+
+    def publish(self, agent: int, p: Any, now: float) -> None:
+        if isinstance(p, Envelope):
+            self.members.sent.setdefault(agent, []).append(p)  # (kept as sent: said again after a cut)
+        if isinstance(p, Mark):
+            self.report.marks += 1
+        elif isinstance(p, Need):
+            self.report.needs += 1
+        elif isinstance(p, Envelope) and isinstance(p.message, Back):
+            self.back_sent(p)
+        self.net.send(now, p, [j for j in sorted(self.live) if j != agent] + self._monitor_ids)
+
+    def send_goal(self, agent: int, o: SendGoal, now: float) -> None:
+        if agent in self.bases.mirrors:
+            self.bases.mirrors[agent].sent(o.id, o.goal)
+        life = self.agents[agent].incarnation
+        if self.bases.remote is not None:
+            self.queue.push(self._arrival("goal", agent, now), KILL, GoalArrives(agent, o, life))
+            return
+        for r in self.world.goal(agent, o.id, o.goal, o.at, life):
+            self.base_event(r, now)
+            if isinstance(r, GoalResult):
+                self.dispatch(r.agent, self.agents[r.agent].on_result(r, now), now)
+
+    # ------------------------------------------------------------------ the world's bases
+
+    def schedule_world(self) -> None:
+        t = self.world.next_time()
+        if t is not None and t not in self._world_times:
+            self._world_times.add(t)
+            self.queue.push(t, WORLD, WorldDue())
+
+    def world_events(self, now: float) -> None:
+        self._world_times.discard(now)
+        for ev in self.world.advance(now):
+            self.base_event(ev, now)
+            if self.bases.remote is not None:
+                continue
+            if isinstance(ev, (GoalResult, Detection)):
+                self.call(ev.agent, Base(ev), now)
+            elif isinstance(ev, CarryStarted):
+                for j in ev.group:
+                    self.call(j, Base(ev), now)
+        self.schedule_world()
+
+    def base_event(self, ev: Any, now: float) -> None:
+        """A base's event for the robots' pictures (a tracking world's GoalStarted and Stalled go
+        only there); with bases across a network, on its way to its robots (:meth:`base_in`)."""
+        bases = self.bases
+        if bases.remote is not None:
+            there: tuple[ObjectInfo, ...] = ()  # (with a result: what it senses where it stands)
+            if isinstance(ev, GoalResult) and ev.outcome in ("reached", "aborted"):
+                there = self.world.feedback(ev.agent, ev.time).sensed
+            for j in ev.group if isinstance(ev, CarryStarted) else (ev.agent,):
+                bases.in_flight.setdefault(j, []).append(now)
+                self.queue.push(self._arrival("base", j, now), KILL, BaseArrives(j, ev, there))
+            return
+        if not bases.mirrors:
+            return
+        if isinstance(ev, CarryStarted):
+            for j in ev.group:
+                if j in bases.mirrors:
+                    bases.mirrors[j].take(ev)
+        elif ev.agent in bases.mirrors:
+            sensed: tuple[ObjectInfo, ...] = ()
+            if isinstance(ev, GoalResult) and ev.outcome in ("reached", "aborted"):
+                sensed = self.world.feedback(ev.agent, ev.time).sensed
+            bases.mirrors[ev.agent].take(ev, sensed)
+
+    def check_mirror(self, agent: int, fb: Feedback) -> None:
+        m = self.bases.mirrors.get(agent)
+        if m is None:
+            return
+        mine = m.feedback(fb.time) if m.fresh else None
+        if mine is None or (mine.time, mine.cell, mine.goal, mine.index, mine.carrying) != (
+            fb.time,
+            fb.cell,
+            fb.goal,
+            fb.index,
+            fb.carrying,
+        ):
+            self.bases.errors.append(f"agent {agent}: world {fb}, mirror {mine}")
+
+    # ------------------------------------------------------------------ bases across a network
+
+    def across_a_network(self, delay: Latency | None, seed: int) -> None:
+        """Every robot's base across a network, ``delay`` away (its own draws: the messages'
+        stay as they were), each robot deciding on its own picture (:class:`BaseLink`); None:
+        each its own hardware."""
+        if delay is None:
+            return
+        self.bases.remote = Network(self.queue, delay, seed + 7919)
+        self.report.base_delay = delay
+        for ra in self.agents.values():
+            ra.across_a_network()
+            self.bases.links[ra.id] = BaseLink(ra, self.bases.mirrors[ra.id])
+
+    def _arrival(self, way: str, agent: int, now: float) -> float:
+        """When something sent now on ``way`` (goals to the world, events to a robot) arrives:
+        its own delay, after everything sent before it on the same way (one reliable topic)."""
+        bases = self.bases
+        assert bases.remote is not None
+        at = max(bases.due.get((way, agent), 0.0), now + bases.remote.delay())
+        bases.due[(way, agent)] = at
+        return at
+
+    def goal_arrives(self, agent: int, o: SendGoal, life: int, now: float) -> None:
+        """A robot's goal reaches the world: it takes over when the world node takes it over
+        (:meth:`RealtimeWorld.takeover`: at its decision's time if less than a step ago)."""
+        for r in self.world.goal(agent, o.id, o.goal, self.world.takeover(agent, o.goal, o.at, now), life):
+            self.base_event(r, now)
+        self.schedule_world()
+
+    def base_in(self, agent: int, ev: Any, sensed: tuple[ObjectInfo, ...], now: float) -> None:
+        """One of its base's events reaches a robot, as an agent node takes it (its
+        :class:`BaseLink`): its picture and its runtime, then what it may commit, then the
+        decision that waited for its picture."""
+        ra, link = self.agents[agent], self.bases.links[agent]
+        self.dispatch(agent, link.event(ev, sensed, now), now)
+        ra.base_known(self._known(agent, now))
+        self.dispatch(agent, link.retry(now), now)
+        if ra.held(now) or ra.decision_due(now):
+            self.dispatch(agent, ra.on_clock(now), now)
+
+    def _known(self, agent: int, now: float) -> float:
+        """How far a robot has its base's events: up to the first still on its way (its base's
+        clock says as much over DDS), and no further than that clock has come."""
+        bases = self.bases
+        assert bases.remote is not None
+        known = now - bases.remote.latency.steps
+        due = self.world.next_time()
+        if due is not None and due <= now:  # the world has not moved its bases on to now yet
+            known = min(known, due - 1e-6)
+        flying = bases.in_flight.get(agent)
+        return min(known, flying[0] - 1e-6) if flying else known
+
+    # ------------------------------------------------------------------ who is in the team
+
+    @property
+    def _monitor_ids(self) -> list[int]:
+        return [MONITOR] if self.members.monitor is not None else []
 
     def membership(
         self,
@@ -542,8 +673,9 @@ class _Run:
     ) -> None:
         """A monitor for the team, the silences and the joins (a robot that joins is out from
         the start and heard from its step on)."""
-        self.monitor = Monitor(tuple(sorted(self.agents)))
-        self.failure_timeout = timeout
+        m = self.members
+        m.monitor = Monitor(tuple(sorted(self.agents)))
+        m.failure_timeout = timeout
         self.report.silences, self.report.failure_timeout = tuple(silences), timeout
         self.report.joins = tuple(sorted(joins.items()))
         for a, at, steps in silences:
@@ -551,7 +683,7 @@ class _Run:
                 raise ValueError(f"silence of agent {a}: no such agent")
             if at < 0 or steps <= 0:
                 raise ValueError(f"silence of agent {a}: from step {at} for {steps} steps")
-            self.queue.push(at, KILL, ("freeze", a, steps))
+            self.queue.push(at, KILL, Freeze(a, steps))
         for a, at in sorted(joins.items()):
             if a not in self.agents:
                 raise ValueError(f"join of agent {a}: no such agent")
@@ -559,52 +691,72 @@ class _Run:
                 raise ValueError(f"join of agent {a} at step {at}: must be > 0")
             if a in failures:
                 raise ValueError(f"agent {a} both joins and fails")
-            self.frozen[a] = at
-            self.queue.push(at, KILL, ("thaw", a))
-            self.out(a, 0.0)
+            m.frozen[a] = at
+            self.queue.push(at, KILL, Thaw(a))
+            self.declare_out(a, 0.0)
+
+    def monitor_hears(self, payload: Any, now: float) -> None:
+        """The monitor hears a broadcast (or its timer fires: None): it commits what it can and
+        announces what is wanted; a Back for a dead robot has it declared again, for that life."""
+        m = self.members.monitor
+        assert m is not None
+        marks = m.tick(now) if payload is None else m.hear(payload, now)
+        for mark in marks:
+            self.report.marks += 1
+            self.net.send(now, mark, sorted(self.live))
+        nxt = m.next_wanted()
+        if nxt is not None and nxt > now and nxt not in self.members.monitor_wakes:
+            self.members.monitor_wakes.add(nxt)
+            self.queue.push(float(nxt), WAKE, Call(MONITOR, Clock()))
+        back = payload.message if isinstance(payload, Envelope) else None
+        if isinstance(back, Back) and back.agent not in self.live:
+            self.declare(back.agent, now)
 
     def counted(self) -> int:
         """Protocol messages the team took in: those of each robot's lives — from the start to its
         first notice (a failed robot's up to its notice's stamp: what it sent after its last
         watermark is dropped by everyone, as if never sent), from each Back that counted (the
         first in batch order) to the next notice."""
+        m = self.members
         n = 0
         for j, ra in self.agents.items():
             lives = [(-1, 0)]
-            lives += [(b[0] + 1, b[2]) for _, b in sorted((k, v) for k, v in self.backs.items() if k[0] == j)]
+            lives += [(b[0] + 1, b[2]) for _, b in sorted((k, v) for k, v in m.backs.items() if k[0] == j)]
             spans = []
             for k, (first, after) in enumerate(lives):
-                end, upto = self.notice_log.get((j, k), (math.inf, math.inf))
+                end, upto = m.notice_log.get((j, k), (math.inf, math.inf))
                 spans.append((first, max(end, first), after, upto))
-            n += sum(1 for s, q in ra.sent if any(f <= s < e and a < q <= u for f, e, a, u in spans))
+            n += sum(1 for s, q in ra.record.sent if any(f <= s < e and a < q <= u for f, e, a, u in spans))
         return n
 
     def freeze(self, agent: int, steps: float, now: float) -> None:
         """Robot ``agent`` falls silent for ``steps`` (its process stopped: it hears, decides and
         sends nothing; its base goes on); past the failure timeout it is declared out."""
-        if agent not in self.live or agent in self.frozen:
+        m = self.members
+        if agent not in self.live or agent in m.frozen:
             return
-        self.frozen[agent] = now + steps
-        self.queue.push(now + steps, KILL, ("thaw", agent))
-        if steps > self.failure_timeout:
-            self.queue.push(now + self.failure_timeout, KILL, ("out", agent))
+        m.frozen[agent] = now + steps
+        self.queue.push(now + steps, KILL, Thaw(agent))
+        if steps > m.failure_timeout:
+            self.queue.push(now + m.failure_timeout, KILL, DeclareOut(agent))
 
     def thaw(self, agent: int, now: float) -> None:
         """It runs again: what came for it meanwhile, in order, then on as before."""
-        if self.frozen.pop(agent, None) is None:
+        m = self.members
+        if m.frozen.pop(agent, None) is None:
             return
-        for method, arg in self.held.pop(agent, []):
-            self.call(agent, method, arg, now)
-        self.call(agent, "on_clock", None, now)
+        for what in m.held.pop(agent, []):
+            self.call(agent, what, now)
+        self.call(agent, Clock(), now)
 
-    def out(self, agent: int, now: float) -> None:
+    def declare_out(self, agent: int, now: float) -> None:
         """A live robot silent too long is declared out: its base stops (as a failed robot's)
         and every robot, itself included, gets the stamped notice — above its last watermark and
         above the batch it was last readmitted in. It comes back when it is heard again."""
         if agent not in self.live:
             return
         ra = self.agents[agent]
-        m = self.monitor
+        m = self.members.monitor
         if (
             ra.out
             or m is None
@@ -617,36 +769,59 @@ class _Run:
         self.announce(agent, now, dead=False)
 
     def kill(self, agent: int, now: float) -> None:
-        """The robot is gone; the world declares it, stamped above its last watermark — at once,
-        or ``declare_after`` steps later (as over DDS, where a lapsed liveliness tells the world:
+        """The robot is gone; it is declared, stamped above its last watermark — at once, or
+        ``declare_after`` steps later (as over DDS, where a lapsed liveliness tells the monitor:
         meanwhile the robot's base moves on, sensing what its dead robot never reports)."""
         if agent not in self.live:
             return
         self.live.discard(agent)
-        if self.declare_after:
-            self.queue.push(now + self.declare_after, KILL, ("declare", agent))
+        if self.members.declare_after:
+            self.queue.push(now + self.members.declare_after, KILL, Declare(agent))
         else:
             self.declare(agent, now)
 
-    def declare(self, agent: int, now: float, life: int | None = None) -> None:
+    def declare(self, agent: int, now: float) -> None:
+        """A dead robot's notice: the monitor's, if one runs; else the run's on the world's behalf,
+        stamped above the last watermark the robot gave (it is declared once: it is dead)."""
         self.world.kill(agent, now)
-        if self.monitor is not None:
+        if self.members.monitor is not None:
             self.announce(agent, now, dead=True)
             return
         ra = self.agents[agent]
-        life = ra.incarnation if life is None else life
-        if (agent, life) in self.notice_log:
-            return  # (out already: its next life, if a member readmits it, is declared then)
+        life = ra.incarnation
         sp = ra.speaker
         stamp = max(sp.announced + 1, math.ceil(now - 1e-9))
         # declared late, its counted sensing ends where its last watermark says (it commits a
         # time only once its base's events up to it are handled): not where its base is now
-        sensed = float(sp.announced) if self.declare_after else None
+        sensed = float(sp.announced) if self.members.declare_after else None
         notice = replace(self.world.notice(agent, stamp, sp.seq, sensed_until=sensed), incarnation=life)
-        self.notices[agent] = stamp
-        self.notice_log[(agent, life)] = (stamp, sp.seq)
+        self.members.notice_log[(agent, life)] = (stamp, sp.seq)
         self.net.send(now, notice, sorted(self.live))
         self.schedule_world()
+
+    def announce(self, agent: int, now: float, dead: bool) -> None:
+        """The monitor declares ``agent`` (silent too long; ``dead``: gone for good): its notice,
+        stamped above its last watermark heard, to every robot (itself included, if it runs)."""
+        m = self.members.monitor
+        assert m is not None
+        d = m.declare(agent, dead=dead)
+        if d is None:
+            return
+        notice = self.world.notice(agent, d.stamp, d.seq, sensed_until=float(d.watermark))
+        notice = replace(notice, incarnation=d.life, serial=d.serial)
+        self.members.notice_log[(agent, d.life)] = (d.stamp, d.seq)
+        self.net.send(now, notice, sorted(self.live))
+        self.monitor_hears(None, now)
+        self.schedule_world()
+
+    def back_sent(self, env: Envelope) -> None:
+        """A member readmits a robot: the first Back in batch order will count."""
+        b = env.message
+        key = (b.agent, b.incarnation)
+        mine = (env.stamp, env.sender, b.after)
+        backs = self.members.backs
+        if key not in backs or mine < backs[key]:
+            backs[key] = mine
 
     def heal(self, k: int, now: float) -> None:
         """Partition ``k``, which lost what crossed it, heals: each robot of its groups sees its
@@ -655,40 +830,14 @@ class _Run:
         and relays."""
         for agent in sorted(frozenset().union(*self.net.splits[k].groups)):
             if agent in self.live:
-                self.call(agent, "again", None, now)
+                self.call(agent, Again(), now)
             else:
                 self.resend(agent, now)
 
     def resend(self, agent: int, now: float) -> None:
         """Every message ``agent`` sent, again, to every robot (a copy it has is dropped)."""
-        for env in self.sent.get(agent, []):
+        for env in self.members.sent.get(agent, []):
             self.net.send(now, env, [j for j in sorted(self.live) if j != agent])
-
-    def back_sent(self, env: Envelope, now: float) -> None:
-        """A member readmits a robot: the first Back in batch order will count. A dead robot
-        readmitted (it had asked before it died) is declared again, for that life."""
-        b = env.message
-        key = (b.agent, b.incarnation)
-        mine = (env.stamp, env.sender, b.after)
-        first = key not in self.backs
-        if first or mine < self.backs[key]:
-            self.backs[key] = mine
-
-    def announce(self, agent: int, now: float, dead: bool) -> None:
-        """The monitor declares ``agent`` (silent too long; ``dead``: gone for good): its notice,
-        stamped above its last watermark heard, to every robot (itself included, if it runs)."""
-        m = self.monitor
-        assert m is not None
-        d = m.declare(agent, dead=dead)
-        if d is None:
-            return
-        notice = self.world.notice(agent, d.stamp, d.seq, sensed_until=float(d.watermark))
-        notice = replace(notice, incarnation=d.life, serial=d.serial)
-        self.notices[agent] = d.stamp
-        self.notice_log[(agent, d.life)] = (d.stamp, d.seq)
-        self.net.send(now, notice, sorted(self.live))
-        self.monitor_hears(None, now)
-        self.schedule_world()
 
 
 def run_realtime(
@@ -747,7 +896,9 @@ def run_realtime(
         Network(queue, latency, seed, splits=tuple(splits)),
         queue,
         RealtimeReport(latency, seed, speed_jitter, tuple(stalls)),
-        {ra.id for ra in agents},
+        _Members({ra.id for ra in agents}, declare_after=declare_after),
+        _Bases(lag=base_lag),
+        observe,
     )
     bound = step_limit(scenario, len(failures))
     slack = (latency.steps + latency.jitter + 2) * 4 * (len(scenario.objects) + scenario.n_agents + 4)
@@ -760,39 +911,38 @@ def run_realtime(
             if not g <= set(run.agents):
                 raise ValueError(f"split: no agents {sorted(g - set(run.agents))}")
     limit = max_steps if max_steps is not None else 2 * bound + slack + sum(s[2] for s in stalls) + away
-    run.base_lag, run.declare_after, run.observer = base_lag, declare_after, observe
+    if mirrors:
+        where = {o.id: o.destination for o in scenario.objects}
+        team = TeamInfo.from_scenario(scenario)
+        run.bases.mirrors = {ra.id: mirror_of(team, ra.id, where.__getitem__) for ra in agents}
     run.across_a_network(base_delay, seed)
     if failure_timeout <= 0:
         raise ValueError(f"failure timeout {failure_timeout}: must be > 0")
     if monitor:
         run.membership(silences, joins, failure_timeout, failures)
-    if mirrors:
-        where = {o.id: o.destination for o in scenario.objects}
-        team = TeamInfo.from_scenario(scenario)
-        run.mirrors = {ra.id: mirror_of(team, ra.id, where.__getitem__) for ra in agents}
     for k, sp in enumerate(splits):
         if sp.lost:  # (after the copies of its last moment: the robots say it again then)
-            queue.push(sp.start + sp.steps, KILL, ("heal", k))
+            queue.push(sp.start + sp.steps, KILL, Heal(k))
     for a, t in sorted(failures.items()):
         if a not in run.agents:
             raise ValueError(f"failure of agent {a}: no such agent")
-        queue.push(t, KILL, ("kill", a))
+        queue.push(t, KILL, Kill(a))
     for ra in agents:  # after any failure at step 0
-        queue.push(0.0, WAKE, ("start", ra.id))
+        queue.push(0.0, WAKE, Call(ra.id, Start()))
     error, now, end = run.loop(limit)
     run.world.end = now if end is None else end
     result = finish_result(cast(World, run.world), [ra.agent for ra in agents], run.counted())
     if error is not None:
         result.completed = False
         result.error = error
-    run.report.lag = {ra.id: ra.max_lag for ra in agents}
-    run.report.rejoins = sum(ra.rejoins for ra in agents)
+    run.report.lag = {ra.id: ra.record.max_lag for ra in agents}
+    run.report.rejoins = sum(ra.life.rejoins for ra in agents)
     run.report.splits = tuple(splits)
     run.report.healed = [healed(agents, sp.start + sp.steps, run.live) for sp in splits]
     run.report.labels = run.world.labels
     run.report.held, run.report.lost = run.net.held, run.net.lost
     run.report.out_at_end = sorted(run.world.outs)
-    run.report.mirror_errors = run.mirror_errors
+    run.report.mirror_errors = run.bases.errors
     run.report.disagreements, run.report.coordinations = disagreements(agents)
     if observe is not None:
         observe.end(run)
@@ -803,11 +953,11 @@ def healed(agents: Sequence[RealtimeAgent], heal: float, live: set[int]) -> floa
     """Steps from ``heal`` until every live robot in the team had taken the last batch stamped
     before it (what the partition held up: from then on all compute alike again); 0 if none was
     held past it, None if a robot never took it."""
-    stamps = [t for ra in agents for t in ra.taken_at if t < heal]
+    stamps = [t for ra in agents for t in ra.record.taken_at if t < heal]
     if not stamps:
         return 0.0
     last = max(stamps)
-    times = [ra.taken_at.get(last) for ra in agents if ra.id in live and not ra.out]
+    times = [ra.record.taken_at.get(last) for ra in agents if ra.id in live and not ra.out]
     if any(t is None for t in times):
         return None
     return max(0.0, max(t for t in times if t is not None) - heal)
@@ -816,13 +966,13 @@ def healed(agents: Sequence[RealtimeAgent], heal: float, live: set[int]) -> floa
 def disagreements(agents: Sequence[RealtimeAgent]) -> tuple[int, int]:
     """(batches whose digests differ between agents that took them, batches with a coordination
     compared): a batch an agent took without changing its schedule counts as its digest None."""
-    stamps = sorted({t for ra in agents for t in ra.digests})
+    stamps = sorted({t for ra in agents for t in ra.record.digests})
     bad = 0
     for t in stamps:
         seen = {
-            (d.input, d.output) if (d := ra.digests.get(t)) is not None else None
+            (d.input, d.output) if (d := ra.record.digests.get(t)) is not None else None
             for ra in agents
-            if t in ra.processed
+            if t in ra.record.processed
         }
         if len(seen) > 1:
             bad += 1

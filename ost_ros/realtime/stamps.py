@@ -7,9 +7,12 @@ so stamps never decrease with seq and never fall at or below a watermark the sen
 A participant *commits* step t once it has handled every event of time ≤ t (its own clock passed
 t): from then on it sends nothing stamped ≤ t. It *announces* that (a :class:`Mark`) only when
 someone waits for it — a peer's :class:`Need`, or any message stamped t it has sent or received
-(everyone will need batch t) — and once per such stamp: no periodic heartbeat. Because the
-watermark depends only on the participant's own clock, never on its comm progress, there is no
-cascade: batch t is complete one round of announcements after every clock has passed t.
+(everyone will need batch t) — and once per such stamp: no periodic heartbeat. How far it may
+commit is its commit rule's (:class:`~ost_ros.realtime.commit.CommitRule`): its clock, its base's
+events, decisions due — and, for CCP's improved planner only, a carry's gate, which holds the
+commitment below step s until the batches up to s − 2 are known. No commitment waits for a batch
+at or above itself, so there is no cascade: batch t is complete one round of announcements after
+every clock has passed t (and every gate below it has opened).
 
 Receiver side (:class:`Batches`): batch t is *complete* once every live participant's announced
 watermark is ≥ t and every message it sent up to that announcement has arrived (arrival order
@@ -35,6 +38,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
+from ost_ros.realtime.commit import NO_LIMIT
 from ost_ros.realtime.messages import MONITOR, Envelope, Lost, Mark, Need
 
 
@@ -55,27 +59,22 @@ class Speaker:
     me: int
     seq: int = 0  # messages sent so far
     committed: int = -1  # nothing more stamped ≤ committed will be sent
-    # The highest step it may commit: every event up to it has been handled (an agent node: its
-    # base's events are in up to there). A message stamped above it announces no more than it.
-    ceiling: float = math.inf
     announced: int = -1  # the largest watermark peers can know (explicitly or implied)
     wanted: set[int] = field(default_factory=set)  # stamps peers wait for, not yet announced
 
-    def send(self, message: object, time: float, shared: bool = True) -> Envelope:
+    def send(self, message: object, time: float, shared: bool = True, limit: int = NO_LIMIT) -> Envelope:
         """Stamp ``message`` (happening at ``time``); it carries the watermark it implies — stamp
-        - 1 unless the ceiling holds the commitment lower. ``shared``: it belongs to a batch (a
+        - 1 unless ``limit`` (the highest step it may commit: :class:`~ost_ros.realtime.commit.CommitRule`)
+        holds the commitment lower, then spelt out. ``shared``: it belongs to a batch (a
         cross-check does not: nobody waits for its stamp)."""
         stamp = stamp_of(time, self.committed)
         self.seq += 1
-        self.committed = max(self.committed, min(stamp - 1, self._top()))
+        self.committed = max(self.committed, min(stamp - 1, limit))
         self.announced = max(self.announced, self.committed)
         if shared:
             self.wanted.add(stamp)  # peers will need batch `stamp`: say when it is passed
         held = self.committed != stamp - 1
         return Envelope(self.me, self.seq, stamp, message, self.committed if held else None)
-
-    def _top(self) -> int:
-        return math.floor(self.ceiling + 1e-9) if math.isfinite(self.ceiling) else 1 << 62
 
     def need(self, stamp: int) -> Need:
         """A request for batch ``stamp``, carrying this participant's own watermark (so nobody
@@ -88,9 +87,8 @@ class Speaker:
         return Need(self.me, stamp, self.committed, self.seq)
 
     def commit(self, t: int) -> list[Mark]:
-        """Every event of time ≤ t is handled: commit t (no higher than the ceiling) and announce
-        it if someone waits."""
-        t = min(t, self._top())
+        """Every event of time ≤ t is handled (its caller asked its commit rule): commit t and
+        announce it if someone waits."""
         if t > self.committed:
             self.committed = t
         return self._announce()
@@ -118,8 +116,10 @@ class Speaker:
 
 
 @dataclass
-class _Peer:
-    """What a receiver knows of one participant's messages."""
+class Ledger:
+    """What a receiver knows of one participant's messages: which arrived, and the watermarks
+    they and its marks carried (ascending; an older one heard late adds nothing). A robot's
+    batches and the membership monitor keep one per participant."""
 
     marks: list[tuple[int, int]] = field(default_factory=list)  # (watermark, seq), ascending
     contiguous: int = 0  # every seq ≤ contiguous has arrived
@@ -132,7 +132,7 @@ class _Peer:
 
     def arrived(self, seq: int) -> bool:
         """Note the arrival of ``seq``; False if it had already arrived."""
-        if seq <= self.contiguous or seq in self.ahead:
+        if self.has(seq):
             return False
         self.ahead.add(seq)
         while self.contiguous + 1 in self.ahead:
@@ -140,12 +140,26 @@ class _Peer:
             self.ahead.discard(self.contiguous)
         return True
 
+    def has(self, seq: int) -> bool:
+        """Whether message ``seq`` has arrived."""
+        return seq <= self.contiguous or seq in self.ahead
+
     def covers(self, t: int) -> bool:
         """Every message stamped ≤ t has arrived."""
         for watermark, seq in self.marks:
             if watermark >= t:
                 return self.contiguous >= seq
         return False
+
+    def held(self) -> tuple[int, int]:
+        """(watermark, seq): the highest watermark whose messages have all arrived ((-1, 0):
+        none) — what a receiver that must hold every message it counts may count on."""
+        best = (-1, 0)
+        for watermark, seq in self.marks:
+            if seq > self.contiguous:
+                break  # (ascending: every later one needs more)
+            best = (watermark, seq)
+        return best
 
     def forget(self, t: int) -> None:
         """Batch t is taken: watermarks below it are of no more use (the last one stays)."""
@@ -182,7 +196,7 @@ class Batches:
     done: int = -1  # the last batch taken
     failed: dict[int, Lost] = field(default_factory=dict)  # agent out now -> the notice
     lives: dict[int, list[Life]] = field(default_factory=dict)  # agent -> its incarnations
-    _peers: dict[int, _Peer] = field(default_factory=dict)
+    _peers: dict[int, Ledger] = field(default_factory=dict)
     _pending: dict[int, dict[tuple[int, int], Envelope]] = field(default_factory=dict)  # stamp -> ...
     _notices: dict[int, list[Lost]] = field(default_factory=dict)  # stamp -> notices
     _ends: dict[tuple[int, int], Lost] = field(default_factory=dict)  # (agent, life) not begun yet
@@ -193,7 +207,7 @@ class Batches:
     def __post_init__(self) -> None:
         if self.monitor and MONITOR not in self.team:
             self.team = (MONITOR, *self.team)
-        self._peers = {p: _Peer() for p in self.team if p != self.me}
+        self._peers = {p: Ledger() for p in self.team if p != self.me}
         self.lives = {p: [Life(-1, 0)] for p in self.team}
 
     # ------------------------------------------------------------------ input
@@ -230,7 +244,7 @@ class Batches:
     def seen(self, sender: int, seq: int) -> bool:
         """Whether message ``seq`` of ``sender`` has arrived (a copy again is a duplicate)."""
         peer = self._peers.get(sender)
-        return peer is not None and (seq <= peer.contiguous or seq in peer.ahead)
+        return peer is not None and peer.has(seq)
 
     def accept_mark(self, mark: Mark | Need) -> None:
         """A watermark: a Mark's, or the one a Need carries."""
@@ -296,11 +310,6 @@ class Batches:
 
     # ------------------------------------------------------------------ batches
 
-    def participants(self, t: int) -> list[int]:
-        """Who batch t waits for the watermark of: the members whose life spans it (of the
-        others, every message that counts must still all be in: :meth:`complete`)."""
-        return [p for p in self.team if self.member(p, t)]
-
     def lacking(self, t: int) -> list[int]:
         """Members whose messages up to stamp t are not all known to have arrived."""
         return [p for p in self.team if self._lacks(p, t)]
@@ -358,11 +367,6 @@ class Batches:
         batch: list = [msgs[k].message for k in sorted(msgs)]
         batch.extend(sorted(notices, key=lambda n: n.agent))
         return batch
-
-    def envelopes(self, t: int) -> list[Envelope]:
-        """The envelopes of a pending batch, in batch order (for its digest)."""
-        msgs = self._pending.get(t, {})
-        return [msgs[k] for k in sorted(msgs)]
 
     def ask_again(self) -> None:
         """The Needs sent so far may be lost (peers back from a partition that lost them): the

@@ -154,5 +154,176 @@ REPRODUCTIONS: list[tuple[str, list[str]]] = [
 ]
 
 
+def realtime_commands() -> list[tuple[str, list[str]]]:
+    """Runs without a barrier (``ost sim --latency``): every protocol and planner, jitter, speed
+    noise, stalls, failures, bases across a network, silences, joins and partitions."""
+    out: list[tuple[str, list[str]]] = []
+
+    def rt(label: str, scenario: str, *flags: str) -> None:
+        out.append((f"rt-{scenario}-{label}", ["sim", "{dir}/" + scenario + ".yaml", *flags, "--json"]))
+
+    for sc in ("small", "crowd"):
+        rt("ccp-l0", sc, "--protocol", "ccp", "--latency", "0")
+        rt("ccp-l5", sc, "--protocol", "ccp", "--latency", "5:5", "--latency-seed", "3")
+        rt("hcp-l3", sc, "--protocol", "hcp", "--latency", "3:4", "--latency-seed", "1")
+        rt("ncp-l2", sc, "--protocol", "ncp", "--latency", "2:3")
+        rt("auction-l4", sc, "--protocol", "auction", "--latency", "4:4", "--latency-seed", "2")
+        rt("greedy-l6", sc, "--protocol", "greedy", "--latency", "6:2")
+        if sc == "small":  # (the improved planner at every robot's every coordination: seconds)
+            rt("improved-l3", sc, "--protocol", "ccp", "--planner", "improved", "--latency", "3:3")
+        rt("coordinator-l5", sc, "--protocol", "ccp", "--coordination", "coordinator", "--latency", "5:5")
+    rt("ccp-jitter", "hetero", "--protocol", "ccp", "--ci", "2", "--latency", "8:8", "--speed-jitter", "0.5")
+    rt("ccp-stall", "mid", "--protocol", "ccp", "--latency", "2:2", "--stall", "1:10:30", "--stall", "3:40:5")
+    rt("ccp-fail", "crowd", "--protocol", "ccp", "--latency", "4:4", "--fail", "2:40", "--fail", "5:120")
+    rt("hcp-fail", "crowd", "--protocol", "hcp", "--latency", "2:2", "--fail", "2:40")
+    rt("ncp-fail", "crowd", "--protocol", "ncp", "--latency", "3:1", "--fail", "1:30")
+    rt("auction-fail", "mid", "--protocol", "auction", "--latency", "3:3", "--fail", "0:25")
+    rt("greedy-fail", "crowd", "--protocol", "greedy", "--latency", "5:0", "--fail", "3:50")
+    rt(
+        "improved-fail",
+        "small",
+        "--protocol",
+        "ccp",
+        "--planner",
+        "improved",
+        "--latency",
+        "2:6",
+        "--fail",
+        "2:60",
+    )
+    for proto in ("ccp", "hcp", "ncp", "auction", "greedy"):
+        rt(f"{proto}-remote", "crowd", "--protocol", proto, "--latency", "2:2", "--base-delay", "1:2")
+    rt(
+        "improved-remote",
+        "small",
+        "--protocol",
+        "ccp",
+        "--planner",
+        "improved",
+        "--latency",
+        "1:1",
+        "--base-delay",
+        "0.5:1",
+    )
+    rt(
+        "ccp-remote-fail",
+        "crowd",
+        "--protocol",
+        "ccp",
+        "--latency",
+        "3:3",
+        "--base-delay",
+        "2:1",
+        "--fail",
+        "1:70",
+    )
+    rt(
+        "hcp-remote-fail",
+        "crowd",
+        "--protocol",
+        "hcp",
+        "--latency",
+        "1:3",
+        "--base-delay",
+        "1:1",
+        "--fail",
+        "6:90",
+    )
+    for proto in ("ccp", "ncp", "auction", "greedy"):
+        rt(
+            f"{proto}-silence",
+            "crowd",
+            "--protocol",
+            proto,
+            "--latency",
+            "3:3",
+            "--silence",
+            "2:30:60",
+            "--silence",
+            "4:80:5",
+        )
+        rt(f"{proto}-join", "crowd", "--protocol", proto, "--latency", "2:4", "--join", "5:60")
+    rt(
+        "hcp-silence",
+        "crowd",
+        "--protocol",
+        "hcp",
+        "--latency",
+        "3:3",
+        "--silence",
+        "2:30:60",
+        "--failure-timeout",
+        "20",
+    )
+    rt(
+        "improved-silence-join",
+        "small",
+        "--protocol",
+        "ccp",
+        "--planner",
+        "improved",
+        "--latency",
+        "2:2",
+        "--silence",
+        "1:20:40",
+        "--join",
+        "3:90",
+    )
+    rt("ccp-split", "crowd", "--protocol", "ccp", "--latency", "2:2", "--split", "0,1,2/3,4,5,6,7:40:80")
+    rt(
+        "ccp-split-lost",
+        "crowd",
+        "--protocol",
+        "ccp",
+        "--latency",
+        "2:2",
+        "--split",
+        "0,1,2,3/4,5,6,7:30:120",
+        "--split-mode",
+        "lost",
+    )
+    rt("ncp-split", "crowd", "--protocol", "ncp", "--latency", "1:3", "--split", "0,2,4,6/1,3,5,7:50:60")
+    rt("hcp-split", "crowd", "--protocol", "hcp", "--latency", "2:1", "--split", "0,1/2,3,4,5,6,7:60:40")
+    rt(
+        "greedy-split-lost",
+        "crowd",
+        "--protocol",
+        "greedy",
+        "--latency",
+        "2:2",
+        "--split",
+        "0,1,2,3/4,5,6,7:20:90",
+        "--split-mode",
+        "lost",
+    )
+    rt("ccp-paper", "paper", "--protocol", "ccp", "--latency", "5:5")
+    rt(
+        "ccp-everything",
+        "crowd",
+        "--protocol",
+        "ccp",
+        "--ci",
+        "2",
+        "--latency",
+        "4:6",
+        "--speed-jitter",
+        "0.3",
+        "--stall",
+        "0:20:15",
+        "--fail",
+        "7:100",
+        "--silence",
+        "3:40:50",
+        "--join",
+        "5:70",
+        "--split",
+        "0,1,2/3,4,5,6,7:150:60",
+        "--base-delay",
+        "1:1",
+    )
+    out.append(("rt-small-ccp-text", ["sim", "{dir}/small.yaml", "--protocol", "ccp", "--latency", "3:3"]))
+    return out
+
+
 def commands() -> list[tuple[str, list[str]]]:
-    return generate_commands() + sim_commands() + other_commands()
+    return generate_commands() + sim_commands() + other_commands() + realtime_commands()

@@ -86,7 +86,7 @@ class Recovery:
         if msg.sender in self.team.agent_ids and msg.sender not in self.lost:
             self.statuses[msg.sender] = msg
 
-    def _sweeps_of(self, agent: int) -> list[Sweep]:
+    def sweeps_of(self, agent: int) -> list[Sweep]:
         """An agent's search tasks: its own sweep (configuration every team mate can compute),
         then the sweeps it took over."""
         if agent not in self.sweeps:
@@ -107,7 +107,7 @@ class Recovery:
         self._alive = None
         k.searched.discard(agent)
         if self.owed[agent] > 0:  # its unsensed cells: for a survivor to sweep
-            for sw in self._sweeps_of(agent):
+            for sw in self.sweeps_of(agent):
                 rest = remaining_sweep(sw, t, period)
                 if rest:
                     self.orphans.append(rest)
@@ -128,7 +128,7 @@ class Recovery:
                 return False
             if a.start > t:  # a survivor's take-over not begun: back into the pool
                 self.orphans.append(a.path[a.walk :])
-                self._sweeps_of(a.agent).remove(a)
+                self.sweeps_of(a.agent).remove(a)
                 self.owed[a.agent] -= 1
                 if self.owed[a.agent] == 0:
                     k.searched.add(a.agent)
@@ -159,7 +159,7 @@ class Recovery:
         if isinstance(current, Assignment) and current in k.schedule and current.finish > t:
             return Status(self.me, t, current.finish, k.objects[current.object].destination)
         if self.owed[self.me] > 0:
-            sw = [s for s in self._sweeps_of(self.me) if s.finish >= t]
+            sw = [s for s in self.sweeps_of(self.me) if s.finish >= t]
             if sw:
                 return Status(self.me, t, sw[-1].finish, sw[-1].path[-1])
         return Status(self.me, t, t + 1, (at[0], at[1]))
@@ -189,7 +189,7 @@ class Recovery:
             j = self.team.agent_ids[i]
             sw = Sweep.take_over(j, (int(loc[i][0]), int(loc[i][1])), int(cost[i]), cells, int(periods[i]))
             k.schedule.append(sw)
-            self._sweeps_of(j).append(sw)
+            self.sweeps_of(j).append(sw)
             self.owed[j] += 1
             k.searched.discard(j)
             k.free_at[i] = sw.finish

@@ -31,3 +31,31 @@ def test_a_route_over_by_the_decision_waits_for_its_result():
     assert [r.outcome for r in results] == [REACHED] and results[0].time == 4.0
     mirror.take(results[0])
     assert mirror.settled(10.0) and mirror.feedback(10.0).cell == path[-1]
+
+
+def test_a_decision_waits_for_the_picture_and_is_taken_once_the_base_says_more():
+    """The one decide path of a robot whose base is across a network (:class:`BaseLink`, the
+    agent node's and the in-process runner's): a decision asked for while a goal it sent has not
+    started waits, and is answered from the picture once the base's event is in."""
+    from ost_ros.coordination import CoordinationPolicy
+    from ost_ros.realtime.outputs import AskFeedback, SendGoal
+    from ost_ros.realtime.remote import BaseLink
+    from ost_ros.realtime.run import make_agent
+
+    s = build_scenario(Grid(12, 3), [ObjectSpec(0, (6, 2), (11, 2), 1)], n_agents=1, nmax=1)
+    team = TeamInfo.from_scenario(s)
+    world = RealtimeWorld(s, tracking=True)
+    rt = make_agent(team, 0, "ccp", CoordinationPolicy(ci=1))
+    rt.across_a_network()
+    link = BaseLink(rt, mirror_of(team, 0, rt.destination))
+    (ask,) = [o for o in rt.start(0.0) if isinstance(o, AskFeedback)]
+    (goal,) = [o for o in link.decide(ask.at, 0.0) if isinstance(o, SendGoal)]  # the picture is whole
+    link.goal(goal)
+    assert rt.asking() is None
+    # the next decision, asked for before the base has taken that goal over: it waits
+    assert link.decide(0.2, 0.2) == [] and link.waiting == 0.2
+    assert link.retry(0.25) == [] and link.waiting == 0.2  # nothing new: it waits on
+    (started,) = [e for e in world.goal(0, goal.id, goal.goal, 0.0) if isinstance(e, GoalStarted)]
+    assert link.event(started, (), 0.3) == []  # a goal took over: its picture's alone
+    link.retry(0.3)  # the picture is whole: answered (the running goal goes on)
+    assert link.waiting is None and rt.asking() is None and rt.rule.due  # (decided at the move's end)

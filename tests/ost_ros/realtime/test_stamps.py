@@ -3,11 +3,13 @@ only once every live participant has covered it, one order whatever the arrival 
 failure notice that every receiver applies from the same batch."""
 
 import itertools
+import math
 
 import pytest
 
+from ost_ros.realtime.commit import CommitRule, Gate
 from ost_ros.realtime.messages import Envelope, Lost, Mark, Need
-from ost_ros.realtime.stamps import Batches, LateMessage, Speaker, stamp_of
+from ost_ros.realtime.stamps import Batches, LateMessage, Ledger, Speaker, stamp_of
 
 
 def test_stamps_follow_the_event_and_never_fall_at_or_below_a_commitment():
@@ -104,7 +106,8 @@ def test_a_failure_notice_drops_the_robot_from_the_same_batch_everywhere():
         while (t := b.next_stamp()) is not None and b.complete(t):
             out.append((t, tuple(b.take(t))))
         results.add(tuple(out))
-        assert b.participants(6) == [0, 1] and b.participants(5) == [0, 1, 2]
+        assert [p for p in b.team if b.member(p, 6)] == [0, 1]
+        assert [p for p in b.team if b.member(p, 5)] == [0, 1, 2]
     # its message stamped 6 is at or after the notice: dropped; the notice comes last in batch 6
     assert results == {((4, ("2.1",)), (6, (notice,)))}
 
@@ -145,25 +148,55 @@ def test_a_need_carries_the_watermark_of_the_one_who_asks():
     assert 0 not in peer.lacking(7)
 
 
-def test_a_commitment_held_back_by_the_ceiling_rides_on_the_message_explicitly():
+def test_a_commitment_held_back_by_its_base_rides_on_the_message_explicitly():
     sp = Speaker(0)
-    sp.ceiling = 103.0  # its base's events are in up to 103
-    assert sp.commit(110) == [] and sp.committed == 103
-    m = sp.send("find", 105.3)  # decided at 105.3 (the robot's clock runs ahead of its base's)
+    rule = CommitRule(base_known=103.0)  # its base's events are in up to 103
+    assert sp.commit(rule.limit(110.0)) == [] and sp.committed == 103
+    m = sp.send(
+        "find", 105.3, limit=rule.base_limit()
+    )  # decided at 105.3 (its clock runs ahead of its base's)
     assert (m.stamp, m.watermark, m.implied) == (106, 103, 103) and sp.committed == 103
-    late = sp.send("late find", 104.0)  # an event its base reports late keeps its own step
+    late = sp.send("late find", 104.0, limit=rule.base_limit())  # reported late: it keeps its own step
     assert late.stamp == 104 and late.implied == 103
     b = Batches(1, (0, 1), Speaker(1))
     b.speaker.commit(200)
     b.accept(m)
     b.accept(late)
     assert b.lacking(104) == [0]  # 0 only said "nothing more at or below 103"
-    sp.ceiling = 120.0
-    assert sp.commit(110) == [Mark(0, 110, 2)]
+    rule.base_known = 120.0
+    assert sp.commit(rule.limit(110.0)) == [Mark(0, 110, 2)]
     b.accept_mark(Mark(0, 110, 2))
     assert [(t, b.take(t)) for t in (104, 106)] == [(104, ["late find"]), (106, ["find"])]
-    unheld = Speaker(2).send("x", 5.0)  # no ceiling: the watermark is stamp - 1 (not spelt out)
+    unheld = Speaker(2).send("x", 5.0)  # no limit: the watermark is stamp - 1 (not spelt out)
     assert unheld.watermark is None and unheld.implied == 4
+
+
+def test_the_commit_rule_takes_the_smallest_of_what_holds_a_robot_back():
+    rule = CommitRule(remote=True)
+    assert rule.limit(7.4) == 7  # its clock
+    rule.base_known = 5.5
+    assert rule.limit(7.4) == 5  # its base's events
+    rule.base_known = math.inf
+    rule.due.update({6.2, 9.0})
+    assert rule.due_by(7.4) == [6.2] and rule.limit(7.4) == 6  # a decision due at 6.2: below its step 7
+    rule.due.clear()
+    rule.gate = Gate(batch=3, step=6)
+    assert rule.limit(6.0) == 5 and rule.limit(7.0) == 7  # the gated step's decision may change
+    rule.gate = Gate(batch=3, step=None)
+    assert rule.limit(6.0) == 6
+    rule.defer(4.0)
+    rule.defer(3.0)
+    assert rule.deferred == 4.0
+    # held: its base's events keep it below a stamp someone waits for by now
+    rule.base_known = 4.0
+    assert rule.held(6.0, committed=4, waited_for=[5, None])
+    assert not rule.held(6.0, committed=4, waited_for=[7, None])
+    rule.base_known = 6.0
+    assert not rule.held(6.0, committed=4, waited_for=[5])
+    rule.unsure, rule.status_wait = True, 8.0  # a status about a carry waits for its base
+    assert (
+        rule.held(6.0, committed=4, waited_for=[]) and not rule.status_ready(7.0) and rule.status_ready(8.0)
+    )
 
 
 def test_a_cross_check_joins_no_batch_but_counts_as_arrived():
@@ -179,10 +212,24 @@ def test_a_cross_check_joins_no_batch_but_counts_as_arrived():
 
 
 def test_a_mark_is_left_out_when_a_message_at_the_same_moment_carries_it():
-    from ost_ros.realtime.agent import Publish, _fold_marks
+    from ost_ros.realtime.agent import _fold_marks
+    from ost_ros.realtime.outputs import Publish
 
     mark, msg = Publish(Mark(0, 7, 3)), Publish(env(0, 4, 8))  # the message implies 7, count 4
     assert _fold_marks([mark, msg]) == [msg]
     higher = Publish(Mark(0, 9, 4))
     assert _fold_marks([higher, msg]) == [higher, msg]  # it says more than the message: kept
     assert _fold_marks([mark]) == [mark]
+
+
+def test_a_ledger_holds_the_highest_watermark_whose_messages_all_arrived():
+    led = Ledger()
+    assert led.held() == (-1, 0)
+    led.mark(3, 2)  # messages 1..2 stamped ≤ 3
+    led.mark(7, 5)
+    led.mark(5, 4)  # older, heard late: adds nothing
+    assert led.arrived(1) and led.arrived(2) and not led.arrived(2)
+    assert led.held() == (3, 2) and led.covers(3) and not led.covers(4)
+    assert led.arrived(4) and led.held() == (3, 2)  # message 3 still missing
+    assert led.arrived(3) and led.has(3) and led.held() == (3, 2)  # message 5 not in yet
+    assert led.arrived(5) and led.held() == (7, 5) and led.covers(7)
