@@ -28,8 +28,10 @@ A receiver (:class:`Checker`) accepts a message only if
   anything older, so memory stays bounded however long the run;
 
 and the node then checks that the signer is the sender the message claims (:func:`claimed_signer`):
-the world for ``Tick``/``RunEnd``/``RunInfo`` (and a realtime run's ``Lost``, ``BaseEvent``, ``BaseClock``), the
-agent named in it for everything else.
+the world for ``Tick``/``RunEnd``/``RunInfo`` (and a realtime run's ``BaseEvent``, ``BaseClock``,
+``BaseStopped``); the membership monitor for a realtime run's ``Lost`` and ``StopBase`` — the notice
+is stamped by the membership monitor (or, in process without a monitor, by the run on the world's
+behalf); the agent named in it for everything else.
 
 What MACs give up against signatures: whoever holds robot A's key can make A accept a message in
 any member's name (A's keys with everyone are its own) — never another robot; a message no
