@@ -15,13 +15,10 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import os
-import signal
 import sys
 import time
 from typing import Any
 
-from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
@@ -40,7 +37,7 @@ from ost_ros.node.params import (
     realtime_from_args,
     robot_node_options,
 )
-from ost_ros.node.plumbing import Alive, renew_endpoints
+from ost_ros.node.plumbing import Alive, Leaving, awaiting_endpoints, die_at, renew_endpoints
 from ost_ros.node.run import run_node
 from ost_ros.node.signing import node_auth
 from ost_ros.team import TeamInfo
@@ -105,7 +102,7 @@ class AgentRunner:
         # steps only.
         self.originals: dict[int, dict[tuple[int, int], bytes]] = {}
         self.report_sent: AgentReport | None = None
-        self.result_seen = False
+        self.leaving = Leaving()
         q = tp.LOCKSTEP_QOS
         self.tick_topic = tp.tick_topic(me)
         pub = tp.no_events_pub
@@ -154,19 +151,9 @@ class AgentRunner:
 
     # ------------------------------------------------------------------ discovery
 
-    def matched(self) -> bool:
-        """Every endpoint this agent needs is matched (counted, never waited for by sleeping)."""
-        return not self.unmatched()
-
-    def unmatched(self) -> list[str]:
-        """What discovery still lacks, as ``topic matched/needed`` (empty: ready)."""
-        return [
-            f"{'readers' if isinstance(e, Publisher) else 'writers'} of {e.topic_name} {have}/{need}"
-            for e, have, need in self.lacking()
-        ]
-
-    def lacking(self) -> list[tuple[Publisher | Subscription, int, int]]:
-        """The endpoints whose matching is not complete: (endpoint, matched, needed)."""
+    def lacking(self) -> list[tuple[Publisher | Subscription, str, int, int]]:
+        """The endpoints whose matching is not complete (counted, never waited for by sleeping):
+        (endpoint, ``readers of <topic>`` or ``writers of <topic>``, matched, needed)."""
         k = self.observers
         counts: list[tuple[Publisher | Subscription, int, int]] = [
             (self.pub_acted, self.pub_acted.get_subscription_count(), 1 + k),
@@ -180,7 +167,11 @@ class AgentRunner:
             *((pub, pub.get_subscription_count(), self.n + k) for pub in self.kind_pubs.values()),
             *((sub, sub.get_publisher_count(), self.n) for sub in self.kind_subs),
         ]
-        return [(e, have, need) for e, have, need in counts if have < need]
+        return [
+            (e, f"{'readers' if isinstance(e, Publisher) else 'writers'} of {e.topic_name}", have, need)
+            for e, have, need in counts
+            if have < need
+        ]
 
     def rediscover(self, endpoints: list[Publisher | Subscription]) -> None:
         """Create ``endpoints`` anew (the rediscover_s parameter); before the run, so nothing is
@@ -191,29 +182,25 @@ class AgentRunner:
     def on_timer(self) -> None:
         self.leave_if_reported()
         if not self.ready_sent:
-            lacking = self.unmatched()
-            now = time.monotonic()
-            if lacking and now - self.created > tp.DISCOVERY_NOTE_S:  # say what discovery lacks
-                self.throttle.note(("start", "agent"), f"not ready yet: {', '.join(lacking[:6])}")
-            if lacking and self.discovery.for_s(lacking, now) > self.rediscover_s:
-                self.node.get_logger().warning(
-                    f"discovery has not moved for {self.rediscover_s:g} s ({', '.join(lacking[:6])}): "
-                    "creating those endpoints anew"
-                )
-                self.rediscover([e for e, _, _ in self.lacking()])
-                self.discovery.restart(now)
+            if awaiting_endpoints(
+                self.node,
+                self.throttle,
+                self.lacking(),
+                self.created,
+                self.discovery,
+                self.rediscover_s,
+                self.rediscover,
+            ):
                 return
-            if not lacking:
-                # One sample asserts this robot's liveliness at once (the world waits for it)
-                self.alive.say()
-                ready = Ready(self.rt.me, self.protocol, self.fingerprint, self.organisation)
-                self.guard.publish(self.pub_ready, ready)
-                self.ready_sent = True
-                self.world_seen = True
-                self.node.get_logger().info(f"ready: {self.n} agents and the world matched")
+            # One sample asserts this robot's liveliness at once (the world waits for it)
+            self.alive.say()
+            ready = Ready(self.rt.me, self.protocol, self.fingerprint, self.organisation)
+            self.guard.publish(self.pub_ready, ready)
+            self.ready_sent = True
+            self.world_seen = True
+            self.node.get_logger().info(f"ready: {self.n} agents and the world matched")
             return
         self.alive.again_to_new_readers()  # (a restarted world)
-        # The world gone for good: stop instead of waiting forever.
         now = self.node.get_clock().now().nanoseconds * 1e-9
         held = self.rt.held()
         if held is not None and held[1]:
@@ -232,6 +219,7 @@ class AgentRunner:
                 self.held_since = now
         else:
             self.held_since = None
+        # The world gone for good: stop instead of waiting forever (lockstep only: Leaving says why)
         if self.sub_tick.get_publisher_count() == 0:
             self.world_lost_since = self.world_lost_since or now
             if now - self.world_lost_since > WORLD_LOST_S:
@@ -279,12 +267,7 @@ class AgentRunner:
         self._progress()
 
     def on_tick(self, tick: Tick) -> None:
-        if 0 <= self.die_at <= tick.t:  # fault injection: die as a robot does, with no last word
-            self.node.get_logger().warning(
-                f"die_at_step {self.die_at}: killing this process (SIGKILL) on the tick of step {tick.t}"
-            )
-            sys.stderr.flush()
-            os.kill(os.getpid(), signal.SIGKILL)
+        die_at(self.node, self.die_at, tick.t)  # fault injection, on the tick of that step
         self._feed(tick, self.sub_tick.topic_name, self.rt.accept_tick)
 
     def on_sample(self, sample: Sample, data: bytes, kind: type) -> None:
@@ -297,13 +280,13 @@ class AgentRunner:
         self._feed(end, self.sub_end.topic_name, self.rt.accept_end)
 
     def on_result(self, msg: String) -> None:
-        # The world has every report: this agent's job is over. A result before this agent
-        # finished: the world ended the run early (a failure its protocol cannot recover from).
-        # The result is a display topic (std_msgs/String, unsigned): it never ends this agent's
-        # part before its report is with the world (on_timer), and in a secure run an early
-        # one is not believed — the agent leaves once the world is gone.
+        # The world has every report: this agent's job is over (it leaves as Leaving says). A
+        # result before this agent finished: the world ended the run early (a failure its
+        # protocol cannot recover from). The result is a display topic (std_msgs/String,
+        # unsigned): it never ends this agent's part before its report is with the world, and
+        # in a secure run an early one is not believed — the agent leaves once the world is gone.
         if self.rt.finished:
-            self.result_seen = True
+            self.leaving.result = True
             self.leave_if_reported()
         elif self.rt.run is not None and not self.guard.secure:
             self.node.get_logger().error("the world ended the run before this agent finished; exiting")
@@ -317,7 +300,7 @@ class AgentRunner:
 
     def leave_if_reported(self) -> None:
         """After the result: leave once every reader of the report has acknowledged it."""
-        if self.result_seen and self.pub_report.wait_for_all_acked(Duration(seconds=0)):
+        if self.leaving.may_leave(self.pub_report):
             self.done = True
 
 

@@ -25,7 +25,6 @@ robot has every base event up to that time and may commit it (:meth:`RealtimeAge
 from __future__ import annotations
 
 import os
-import signal
 import time
 from collections import deque
 from typing import Any
@@ -43,17 +42,9 @@ from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
 from ost_ros.node.bundles import BUNDLE_TYPE, Unbundler, receivers_for
 from ost_ros.node.params import declare_agent
-from ost_ros.node.plumbing import Alive, renew_endpoints
+from ost_ros.node.plumbing import Alive, Leaving, awaiting_endpoints, die_at, new_readers, renew_endpoints
 from ost_ros.node.signing import node_auth
-from ost_ros.realtime.agent import (
-    AskFeedback,
-    Output,
-    Publish,
-    RealtimeAgent,
-    SendGoal,
-    WakeAt,
-    decision_time,
-)
+from ost_ros.realtime.agent import RealtimeAgent
 from ost_ros.realtime.base import mirror_of, unpack
 from ost_ros.realtime.membership import misfit
 from ost_ros.realtime.messages import (
@@ -68,9 +59,11 @@ from ost_ros.realtime.messages import (
     Mark,
     Need,
 )
+from ost_ros.realtime.outputs import AskFeedback, Output, Publish, SendGoal, WakeAt
+from ost_ros.realtime.remote import BaseLink
 from ost_ros.realtime.run import make_agent
 from ost_ros.realtime.stamps import LateMessage
-from ost_ros.realtime.world import Carry, CarryStarted, Detection, Follow, GoalResult
+from ost_ros.realtime.world import Carry, Follow, GoalResult
 from ost_ros.team import TeamInfo
 
 START_S = 0.05  # how often it looks whether its endpoints are matched, before the run
@@ -94,14 +87,16 @@ class RealtimeAgentNode(Node):
         self.joining = rtp.joining(p["joins"])  # robots not in the team at the start (--join)
         team = TeamInfo.from_scenario(scenario)
         # (the world's membership monitor takes part: every batch waits for its watermark too)
+        # (counts only in its record: a node's run is as long as it is)
         self.rt: RealtimeAgent = make_agent(
-            team, me, p["protocol"], cfg.policy(), cfg.protocol_settings(), monitor=True
+            team, me, p["protocol"], cfg.policy(), cfg.protocol_settings(), monitor=True, whole_record=False
         )
-        self.rt.remote_base = True
+        self.rt.across_a_network()
         self.rt.base_known(-1.0)  # nothing of its base known yet: it commits nothing
-        # where an object is carried to: what the robot knows of it (it carries only objects it
-        # has heard of)
-        self.mirror = mirror_of(team, me, lambda obj: self.rt.destination(obj))
+        # Its picture of its base and the one decide path (ROS-free, as in process): where an
+        # object is carried to is what the robot knows of it (it carries only objects it has
+        # heard of)
+        self.link = BaseLink(self.rt, mirror_of(team, me, lambda obj: self.rt.destination(obj)))
         self.index = ids.index(me)  # its place in the bases' clock
         self.fingerprint = tp.scenario_fingerprint(scenario)
         self.guard = node_auth(p["keys"], p["insecure"], me)
@@ -126,11 +121,11 @@ class RealtimeAgentNode(Node):
         # steady clock, because it extrapolates sim time between base clock messages at the rtf.
         self.wall = RosClock(clock_type=ClockType.STEADY_TIME)
         self.last_goal = 0  # the id of the goal sent last
-        self.ask_at: float | None = None  # a decision waiting for its picture of its base
         self.said = {"messages": 0, "marks": 0, "needs": 0}  # what it published (the report's log line)
         # Its messages as it sealed them, for a peer that comes back after missing them (below)
         self.originals: list[tuple[Any, bytes]] = []
         self.readers = 0  # the readers its message and mark writers had at the last look
+        self.leaving = Leaving()  # (its part is over once the result comes after its report)
         self._build_endpoints()
         self.start_timer = self.create_timer(START_S, self.try_ready, clock=self.wall)
         self.wake_timer = self.create_timer(1.0, self.on_wake, clock=self.wall, autostart=False)
@@ -142,11 +137,10 @@ class RealtimeAgentNode(Node):
     def _build_endpoints(self) -> None:
         q, me, g, th = tp.LOCKSTEP_QOS, self.me, self.guard, self.throttle
 
-        def other_run(m) -> bool:
-            return m.run != self.run
+        other_run = tp.other_run(self.run)
 
         def not_for_me(m) -> bool:
-            return m.run != self.run or m.sender == self.me
+            return other_run(m) or m.sender == self.me
 
         def known(m) -> bool:  # (a copy it has: the world publishes a failed robot's messages again)
             return not_for_me(m) or self.rt.batches.seen(m.sender, m.seq)
@@ -275,10 +269,6 @@ class RealtimeAgentNode(Node):
                 out.append((e, what, have, need))
         return out
 
-    def lacking(self) -> list[str]:
-        """What is not matched yet, by name."""
-        return [what for _, what, _, _ in self.unmatched()]
-
     def rediscover(self, endpoints: list[Any]) -> None:
         """Create ``endpoints`` anew (the ``rediscover_s`` parameter: Fast DDS now and then never
         pairs one writer with one reader, docs/ros.md); before the run, so nothing is in flight."""
@@ -287,18 +277,15 @@ class RealtimeAgentNode(Node):
     def try_ready(self) -> None:
         if self.ready_sent:
             return
-        unmatched = self.unmatched()
-        if unmatched:
-            lacking, now = [what for _, what, _, _ in unmatched], time.monotonic()
-            if now - self.created > tp.DISCOVERY_NOTE_S:
-                self.throttle.note(("start", "agent"), f"not ready yet: not matched {lacking[:8]}")
-            if self.discovery.for_s(lacking, now) > self.p["rediscover_s"]:
-                self.get_logger().warning(
-                    f"discovery has not moved for {self.p['rediscover_s']:g} s ({', '.join(lacking[:6])}): "
-                    "creating those endpoints anew"
-                )
-                self.rediscover([e for e, _, _, _ in unmatched])
-                self.discovery.restart(now)
+        if awaiting_endpoints(
+            self,
+            self.throttle,
+            self.unmatched(),
+            self.created,
+            self.discovery,
+            self.p["rediscover_s"],
+            self.rediscover,
+        ):
             return
         self.ready_sent = True
         self.start_timer.cancel()
@@ -323,7 +310,7 @@ class RealtimeAgentNode(Node):
         if not self.started:
             self.started = True
             self._now = msg.t
-            self.readers = self.reader_count()
+            _, self.readers = new_readers(self.said_on(), 0)
             self.out(self.rt.start(self.now()))
             self.take_base()  # what its base said before (what it senses where it stands)
             early, self.early = self.early, []
@@ -331,11 +318,7 @@ class RealtimeAgentNode(Node):
                 self.take(payload)
             return
         now = self.now()
-        if 0 <= self.die_at <= now:  # fault injection: die as a robot does, with no last word
-            self.get_logger().warning(
-                f"die_at_step {self.die_at}: killing this process (SIGKILL) at {now:.1f}"
-            )
-            os.kill(os.getpid(), signal.SIGKILL)
+        die_at(self, self.die_at, now)  # fault injection
         self.base_known()
         self.fire(now)
 
@@ -367,14 +350,16 @@ class RealtimeAgentNode(Node):
         """The runtime's timers due by now (and the time passed committed, as far as it may)."""
         if self.started and not self.report_sent:
             self.out(self.rt.on_clock(now))
-            pending = sorted(w for w in self.rt._wakes if w > now)
-            if pending:
-                self.arm(pending[0])
+            pending = self.rt.next_wake(now)
+            if pending is not None:
+                self.arm(pending)
 
     def watch(self) -> None:
         """Say what holds the robot up, once it has waited STALL_S of wall time; say again what
-        it said to readers that came back."""
+        it said to readers that came back; its part over, whether it may leave."""
         if self.report_sent:
+            if self.leaving.may_leave(self.pub_report):
+                self.done = True
             return
         self.readers_back()
         if not self.started:
@@ -394,8 +379,9 @@ class RealtimeAgentNode(Node):
                 f"{wall - self.asking[1]:.0f} s for its base to start or end the goal sent last ({base})",
             )
 
-    def reader_count(self) -> int:
-        return sum(p.get_subscription_count() for p in [*self.kind_pubs.values(), self.pub_marks])
+    def said_on(self) -> list[Publisher]:
+        """The writers of what it says to its peers (their readers, counted: :meth:`readers_back`)."""
+        return [*self.kind_pubs.values(), self.pub_marks]
 
     def readers_back(self) -> None:
         """A peer cut off longer than DDS keeps a participant (its lease: a network partition)
@@ -404,9 +390,10 @@ class RealtimeAgentNode(Node):
         every message it sent again, as it sealed them (a receiver drops the copies it has), and
         its watermark (a Mark: the batches a peer waits for complete). A short cut needs none of
         this: DDS repairs it (docs/realtime.md, "Partitions over DDS"). (In process:
-        ``_Run.heal``.)"""
-        readers = self.reader_count()
-        back, self.readers = readers > self.readers, readers
+        ``_Run.heal``.) So ``originals`` (every message it sealed) stay whole for the run: a robot
+        that joins, or comes back from such a cut, needs every message from the start to compute
+        the same schedule."""
+        back, self.readers = new_readers(self.said_on(), self.readers)
         if not back or not self.started:
             return
         for pub, data in self.originals:
@@ -458,9 +445,7 @@ class RealtimeAgentNode(Node):
             self.base_in += 1
             self.base_event(self.base_ahead.pop(self.base_in))
         self.base_known()
-        if self.ask_at is not None:  # the decision waiting for its picture (again, if still so)
-            at, self.ask_at = self.ask_at, None
-            self.decide(at)
+        self.out(self.link.retry(self.now()))  # the decision waiting for its picture, if one does
 
     def base_event(self, m: BaseEvent) -> None:
         try:
@@ -473,16 +458,9 @@ class RealtimeAgentNode(Node):
             ev = GoalResult(ev.agent, ev.goal, "aborted", ev.time, ev.cell, "PREEMPTED", ev.reason)
         if DEBUG:
             self.get_logger().info(f"base event {m.seq} {ev} at {self.now():.1f}")
-        if not isinstance(ev, Detection):
-            self.mirror.take(ev, m.sensed)
-        if self.report_sent:
-            return
-        if isinstance(ev, Detection):
-            self.out(self.rt.on_detection(ev, self.now()))
-        elif isinstance(ev, CarryStarted):
-            self.out(self.rt.on_carry(ev, self.now()))
-        elif isinstance(ev, GoalResult):
-            self.out(self.rt.on_result(ev, self.now()))
+        outputs = self.link.event(ev, m.sensed, self.now())
+        if not self.report_sent:  # (its part over: its picture alone)
+            self.out(outputs)
 
     # ------------------------------------------------------------------ what goes out
 
@@ -500,16 +478,9 @@ class RealtimeAgentNode(Node):
                 self.arm(o.time)
 
     def decide(self, at: float) -> None:
-        """Where its base will be (its own picture of it): now, unless a goal it sent has neither
-        started nor ended yet, or the route running is over by now with no result yet (then once
-        its events say so)."""
-        now = self.now()
-        t = decision_time(at, now)
-        # (a route over by now waits for its result, even if the decision is taken as of before)
-        if not self.mirror.settled(max(t, now)) and not self.rt.out:  # (out: its base is stopped)
-            self.ask_at = at
-            return
-        self.out(self.rt.on_feedback(self.mirror.feedback(t), now))
+        """Where its base will be, from its own picture of it (:class:`BaseLink`: now, or once
+        its base's events make the picture whole)."""
+        self.out(self.link.decide(at, self.now()))
 
     def publish(self, payload: Envelope | Mark | Need | Hello) -> None:
         if DEBUG and isinstance(payload, Envelope):
@@ -535,7 +506,7 @@ class RealtimeAgentNode(Node):
     def send(self, o: SendGoal) -> None:
         """A goal for its base, on ``base_goals`` (one way: the base's events say how it went)."""
         self.last_goal = o.id
-        self.mirror.sent(o.id, o.goal)
+        self.link.goal(o)
         g = o.goal
         life = self.rt.incarnation
         if isinstance(g, Follow):
@@ -567,19 +538,24 @@ class RealtimeAgentNode(Node):
             tuple(ScheduleEntry(a.object, tuple(a.agents), a.start, a.finish) for a in k.schedule),
             tuple((int(o), int(t)) for o, t in k.found.items()),
             tuple(k.warnings),
-            len(self.rt.sent),
+            self.rt.record.messages,
             k.view,
             run=self.run,
             dropped=tuple(self.guard.counts().values()),
-            lag=float(self.rt.max_lag),
+            lag=float(self.rt.record.max_lag),
         )
         self.guard.publish(self.pub_report, report)
         said = ", ".join(f"{n} {what}" for what, n in self.said.items())
         self.get_logger().info(
-            f"report sent: published {said}; took {len(self.rt.processed)} batches; "
-            f"largest lag {self.rt.max_lag:.1f} steps"
+            f"report sent: published {said}; took {self.rt.record.batches} batches; "
+            f"largest lag {self.rt.record.max_lag:.1f} steps"
         )
 
     def on_result(self, _msg: String) -> None:
+        """The result after its report: it leaves once the report is read (:class:`Leaving`, the
+        lockstep agent's rule too; looked at again by :meth:`watch`). One before: not its run's
+        end (Leaving says why)."""
         if self.report_sent:
-            self.done = True
+            self.leaving.result = True
+            if self.leaving.may_leave(self.pub_report):
+                self.done = True

@@ -19,9 +19,10 @@ The role (:class:`Membership`) is :class:`~ost_ros.realtime.membership.Monitor` 
   and a member readmits it with a stamped Back (the world takes its base back at its robot's
   first goal of the new life).
 
-By default the world node runs the role in its own process (``membership:=world``); with
-``membership:=node`` the world has no membership role at all and this node's process runs it.
-On real bases this node and the agents are the team: nothing of the simulator decides who is in.
+By default (``membership:=node``, what ``ost up --realtime`` starts) this node's process runs the
+role and the world has none at all; with ``membership:=world`` the world node runs it in its own
+process and no membership node is started. On real bases this node and the agents are the team:
+nothing of the simulator decides who is in.
 """
 
 from __future__ import annotations
@@ -33,7 +34,6 @@ import sys
 import time
 from collections.abc import Callable
 from contextlib import AbstractContextManager
-from dataclasses import dataclass, field
 from typing import Any
 
 from rclpy.node import Node
@@ -44,48 +44,15 @@ from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
 from ost_ros.node.bundles import BUNDLE_TYPE, Bundler
 from ost_ros.node.params import ParameterError, declare_role, node_scenario
-from ost_ros.node.plumbing import Liveliness
+from ost_ros.node.plumbing import Liveliness, new_readers
 from ost_ros.node.run import run_node
 from ost_ros.node.signing import NodeAuth, node_auth
-from ost_ros.realtime.membership import Declaration, Monitor, misfit
+from ost_ros.realtime.membership import Declaration, Monitor
 from ost_ros.realtime.messages import Back, BaseStopped, Hello, Lost, Mark, Need, StopBase
+from ost_ros.realtime.stamps import Ledger
 from ost_ros.runconfig import WORLD
 
 START_S = 0.05  # (standalone) how often it looks whether every endpoint is matched
-
-
-@dataclass
-class Heard:
-    """What the monitor heard of one robot's messages: which arrived (its originals, to relay)
-    and the watermarks they and its marks carried — what its notice is made of."""
-
-    contiguous: int = 0  # every message 1..contiguous is here
-    ahead: set[int] = field(default_factory=set)
-    marks: list[tuple[int, int]] = field(default_factory=list)  # (watermark, seq) heard
-
-    def has(self, seq: int) -> bool:
-        return seq <= self.contiguous or seq in self.ahead
-
-    def message(self, seq: int, watermark: int) -> bool:
-        """A message of it arrived; False if held already (the monitor's own relay)."""
-        if self.has(seq):
-            return False
-        self.ahead.add(seq)
-        while self.contiguous + 1 in self.ahead:
-            self.contiguous += 1
-            self.ahead.discard(self.contiguous)
-        self.marks.append((watermark, seq))
-        return True
-
-    def held(self) -> tuple[int, int]:
-        """(watermark, seq): the highest watermark whose messages the monitor holds all of —
-        what it may count on (it relays them, should the robot be declared out); every base
-        event up to it was handled, so what the robot sensed up to there it reported in them."""
-        best = (-1, 0)
-        for w, s in self.marks:
-            if s <= self.contiguous and w > best[0]:
-                best = (w, s)
-        return best
 
 
 # (agent, now, until, life) -> the notice's facts now, or None: they come on stopped_bases
@@ -120,8 +87,17 @@ class Membership:
         self.run = self.guard.run or ""
         self.throttle = tp.Throttle(node.get_logger())
         self.monitor = Monitor(ids)
-        self.heard = {i: Heard() for i in ids}
-        # each robot's messages as it sealed them: (its kind's number, the writer, the bytes)
+        # What it heard of each robot, as a robot's batches keep it of a peer (which messages
+        # arrived, the watermarks they and its marks carried): what the monitor may count on is
+        # the highest watermark whose messages it holds all of (Ledger.held), since it relays
+        # them should the robot be declared out. A watermark not above the last one heard adds
+        # nothing (an older mark come late): the monitor may then count on a lower watermark
+        # than it could for a while — it commits less and stamps a notice lower, never wrongly.
+        self.ledgers = {i: Ledger() for i in ids}
+        # Each robot's messages as it sealed them, (its kind's number, the writer, the bytes),
+        # for the whole run: a robot that joins (or comes back from a cut longer than DDS keeps a
+        # peer) needs every message from the start to compute the same schedule, and the monitor
+        # relays them for a robot out or dead, which nobody else would — so they stay whole.
         self.originals: dict[int, list[tuple[int, Any, bytes]]] = {i: [] for i in ids}
         self.waiting: dict[int, Declaration] = {}  # declared, its base's facts to come
         self.started = self.ended = False
@@ -131,14 +107,13 @@ class Membership:
     def _endpoints(self, p: dict[str, Any]) -> None:
         node, q, g, th, quiet = self.node, tp.LOCKSTEP_QOS, self.guard, self.throttle, tp.no_events_pub
 
-        def other_run(m) -> bool:
-            return m.run != self.run
+        other_run = tp.other_run(self.run)
 
         def known(m) -> bool:  # (a copy it holds: a robot says everything again to a new reader)
-            return other_run(m) or (m.sender in self.heard and self.heard[m.sender].has(m.seq))
+            return other_run(m) or (m.sender in self.ledgers and self.ledgers[m.sender].has(m.seq))
 
         self.kind_subs, self.kind_pubs = [], []
-        self.readers = 0  # readers of its message writers at the last look (a robot that joins)
+        self.readers = 0  # readers of what it says again at the last look (a robot that joins)
         self.looked = 0.0
         # fanout:=monitor: what robots say goes to the monitor alone, which passes it on in
         # bundles (ost_ros.node.bundles); the kinds numbered as rtp.relayed lists them
@@ -206,8 +181,10 @@ class Membership:
 
     def on_sample(self, kind: int, pub: Any, s: Sample, data: bytes) -> None:
         sender = s.message.sender
-        if sender not in self.heard or not self.heard[sender].message(s.seq, s.watermark):
-            return
+        ledger = self.ledgers.get(sender)
+        if ledger is None or not ledger.arrived(s.seq):
+            return  # (a copy it holds: its own relay)
+        ledger.mark(s.watermark, s.seq)
         self.start()
         self.on_heard()
         self.originals[sender].append((kind, pub, data))
@@ -215,27 +192,27 @@ class Membership:
             self.bundler.add(kind, data)
         self.alive.heard_from(sender)
         if getattr(s.message, "SHARED", True):
-            self.monitor.wanted.add(s.step)  # every member will need that batch
+            self.monitor.want(s.step)  # every member will need that batch
         if isinstance(s.message, Back):
-            b = s.message
-            why = misfit(b, self.ids, self.monitor.lives)
+            why = self.monitor.misfit(s.message)
             if why is not None:
                 self.stale(tp.message_topic(Back), sender, why)
                 return
-            self.monitor.lives[b.agent] = max(self.monitor.lives.get(b.agent, 0), b.incarnation)
+            self.monitor.readmitted(s.message)
         self.heard_from(sender)
 
     def on_mark(self, kind: int, m: Mark | Need, data: bytes = b"") -> None:
-        if m.sender not in self.heard:
+        ledger = self.ledgers.get(m.sender)
+        if ledger is None:
             return  # (its own)
         if self.bundler is not None:
             self.bundler.add(kind, data)
         self.start()
         self.on_heard()
-        self.heard[m.sender].marks.append((m.watermark, m.seq))
+        ledger.mark(m.watermark, m.seq)
         self.alive.heard_from(m.sender)
         if isinstance(m, Need):
-            self.monitor.wanted.add(m.stamp)
+            self.monitor.want(m.stamp)
         self.heard_from(m.sender)
 
     def on_hello(self, h: Hello, data: bytes = b"") -> None:
@@ -244,13 +221,14 @@ class Membership:
         members hear it from the monitor: passed on as it came (each member judges it)."""
         if self.bundler is not None:
             self.bundler.add(self.kind_of[rtp.HELLOS], data)
-        why = misfit(h, self.ids, self.monitor.lives)
+        why = self.monitor.misfit(h)
         if why is not None:
             self.stale(rtp.HELLOS, h.sender, why)
-        elif h.sender in self.heard:
+        elif h.sender in self.ledgers:
             self.node.get_logger().info(f"agent {h.sender} asks to come back (life {h.incarnation})")
-            self.monitor.hear(h, math.inf)
-            self.announce(self.monitor.tick(math.inf))
+            # (what it may commit now — a batch wanted since a declaration whose base has not
+            # answered yet, say — goes out at once: hear ticks)
+            self.announce(self.monitor.hear(h, math.inf))
 
     def stale(self, topic: str, sender: int, why: str) -> None:
         """A membership message that does not fit the team: dropped, counted, warned (throttled)."""
@@ -259,8 +237,11 @@ class Membership:
 
     def heard_from(self, agent: int) -> None:
         """What the monitor may count on of ``agent`` moved: it commits what every member has
-        passed, and says so if someone waits."""
-        w, s = self.heard[agent].held()
+        passed, and says so if someone waits. (Every base event up to that watermark was handled
+        by the robot, so what it sensed up to there it reported in those messages.)"""
+        ledger = self.ledgers[agent]
+        w, s = ledger.held()
+        ledger.forget(w)  # (the watermarks below it are of no more use: the ledger stays short)
         self.monitor.note(agent, w, s)
         self.announce(self.monitor.tick(math.inf))
 
@@ -301,12 +282,11 @@ class Membership:
         own again (``RealtimeAgentNode.readers_back``), and the monitor relays the originals of
         the robots out or dead, which nobody else would."""
         pubs = self.kind_pubs if self.bundler is None else [self.bundler.pub]
-        readers = sum(p.get_subscription_count() for p in pubs)
-        back, self.readers = readers > self.readers, readers
+        back, self.readers = new_readers(pubs, self.readers)
         if not back or not self.started:
             return
         if self.bundler is None:
-            for a in sorted(set(self.monitor.out) | self.monitor.dead):
+            for a in self.monitor.away():
                 self.relay(self.originals[a])
             return
         # fanout:=monitor: the robots' own topics have one reader, the monitor, so nobody but
@@ -379,10 +359,7 @@ class MembershipNode(Node):
         self.done = False
         self.role = Membership(self, self.ids, p, self.stop, lambda: -1.0, absent=rtp.joining(p["joins"]))
         g, th, q = self.role.guard, self.role.throttle, tp.LOCKSTEP_QOS
-
-        def other_run(m) -> bool:
-            return m.run != self.role.run
-
+        other_run = tp.other_run(self.role.run)
         self.pub_stop = self.create_publisher(wire.ros_type(StopBase), rtp.STOP_BASES, q)
         self.sub_stopped = tp.subscribe(
             self, BaseStopped, rtp.STOPPED_BASES, self.role.stopped, q, g, th, skip=other_run

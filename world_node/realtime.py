@@ -19,12 +19,13 @@ time, with no barrier. It serves :class:`~ost_ros.realtime.world.RealtimeWorld` 
   ``<ns>/clock`` (``rosgraph_msgs/Clock``) for tools and ``use_sim_time``, 10 times a second;
 - ``<ns>/agent_<i>/pose`` (``geometry_msgs/PoseStamped``, frame ``map``, 1 cell = 1 m) when the
   robot has moved, at most 10 times a second;
-- who is in the team: the membership role (``world_node.membership``) runs in this process —
-  every batch waits for its watermark, a robot silent past its lease is declared out with a
-  stamped notice on ``lost`` and its base stopped, a robot out that runs again asks back and is
-  readmitted by the team — unless ``membership:=node``: then a ``membership_node`` of its own
-  runs it, and this node only stops a base when asked (``stop_bases`` → ``stopped_bases``, the
-  notice's facts). A stopped base takes goals again from its robot's next life (``BaseGoal.life``);
+- who is in the team: the membership role (``world_node.membership``: every batch waits for its
+  watermark, a robot silent past its lease is declared out with a stamped notice on ``lost`` and
+  its base stopped, a robot out that runs again asks back and is readmitted by the team) runs in
+  a ``membership_node`` of its own by default (``membership:=node``, what ``ost up --realtime``
+  starts), and this node only stops a base when asked (``stop_bases`` → ``stopped_bases``, the
+  notice's facts); with ``membership:=world`` the role runs in this process. A stopped base
+  takes goals again from its robot's next life (``BaseGoal.life``);
 - the end: once every object is delivered and every robot finished, ``run_end`` asks for the
   agents' reports; their digests (``<ns>/digests``, as they came) are compared and the result —
   ``ost sim``'s JSON plus ``mode``, ``rtf``, ``disagreements`` and each agent's largest lag — goes
@@ -67,7 +68,7 @@ from ost_ros.lockstep.world import result_from_reports
 from ost_ros.node import realtime as rtp
 from ost_ros.node import transport as tp
 from ost_ros.node.params import ParameterError, declare_role, node_scenario, without_services
-from ost_ros.node.plumbing import Readiness, Result, SignalFiles
+from ost_ros.node.plumbing import Readiness, Result, SignalFiles, new_readers
 from ost_ros.node.run import process_age
 from ost_ros.node.signing import node_auth
 from ost_ros.realtime.base import pack
@@ -201,7 +202,10 @@ class RealtimeWorldNode(Node):
         self.scenario, self.p = scenario, p
         self.ids = tuple(a.id for a in scenario.agents)
         self.joining = rtp.joining(p["joins"])  # robots not in the team at the start (--join)
-        # what each robot that joins later was told by its base (said again when it is up)
+        # what each robot that joins later was told by its base (said again when it is up), for
+        # the whole run: the robot takes its base's events by their numbers, from 1, and holds
+        # every later one while one is missing — so they stay whole (robots that join are few,
+        # and a base says a few events a goal)
         self.said_to: dict[int, list[Any]] = {i: [] for i in self.joining}
         self.base_readers: dict[int, int] = {}
         self.looked = 0.0
@@ -227,6 +231,9 @@ class RealtimeWorldNode(Node):
         self.created = time.monotonic()
         self.last_clock = -1.0
         self.live = set(self.ids)  # robots not out (a robot back is in again)
+        # Every coordination's digests, for the whole run (one per robot and coordination): the
+        # result compares them at the end — a survivor that took a batch with no coordination in
+        # it sends none, so no batch is known complete before — and says when each came.
         self.digests: dict[int, dict[int, tuple[str, str]]] = {}  # stamp -> agent -> digest
         self.digest_at: dict[int, float] = {}  # stamp -> when its last digest came (epoch s)
         self.events = dict.fromkeys(self.ids, 0)  # base events sent to each robot
@@ -251,10 +258,7 @@ class RealtimeWorldNode(Node):
 
     def _build_endpoints(self, p: dict[str, Any]) -> None:
         q, g, th, quiet = tp.LOCKSTEP_QOS, self.guard, self.throttle, tp.no_events_pub
-
-        def other_run(m) -> bool:
-            return m.run != self.run
-
+        other_run = tp.other_run(self.run)
         self.pub_clock = self.create_publisher(Clock, tp.CLOCK, tp.LATEST_QOS)
         # The bases' clock: the newest is all that counts (its counts are totals), so keep-last 1
         # — kept-all, each tick waited in the writer for 50 readers' acknowledgements (a 50-robot
@@ -453,11 +457,10 @@ class RealtimeWorldNode(Node):
         base stopped at the start): said again, sealed anew, once a reader is matched (the
         robot takes each event once, by its number)."""
         for i, said in self.said_to.items():
-            readers = self.pub_base[i].get_subscription_count()
-            if readers > self.base_readers.get(i, 0):
+            back, self.base_readers[i] = new_readers([self.pub_base[i]], self.base_readers.get(i, 0))
+            if back:
                 for msg in said:
                     self.guard.publish(self.pub_base[i], msg, run=self.run, receivers=(i,))
-            self.base_readers[i] = readers
 
     def dispatch(self, ev: Any) -> None:
         if DEBUG:

@@ -76,7 +76,8 @@ class WorldNode(Node):
         self.done = False
         self.ticks_sent = 0
         # Round trips timed (tick sent → last action in), quiet ones and those with protocol
-        # messages apart (benchmarks/bench_ros.py sets them against bench_floor.py's floor).
+        # messages apart (benchmarks/bench_ros.py sets them against bench_floor.py's floor):
+        # a float each for the whole run, since the transport stats give their medians.
         self.tick_at = 0.0
         self.round_trip_s: dict[str, list[float]] = {"quiet": [], "messages": []}
         self.bring_up_s: float | None = None

@@ -10,19 +10,31 @@ World side (the lockstep and realtime world nodes; the membership role watches l
 - :class:`SignalFiles`: the files the run's supervisor polls (``ready_file``, ``progress_file``);
 - :class:`Result`: the result's JSON to ``result_file`` and ``result``, and when to leave after it.
 
-Agent side: :class:`Alive`, the robot's ``alive`` topic — its leased liveliness and the one
-sample the world starts on.
+Agent side (the lockstep ``agent_node`` and the realtime one):
+
+- :class:`Alive`: the robot's ``alive`` topic — its leased liveliness and the one sample the world
+  starts on;
+- :func:`awaiting_endpoints`: before its Ready, what discovery lacks, said; the endpoints whose
+  matching stopped moving created anew (:func:`renew_endpoints`);
+- :class:`Leaving`: when it leaves, its part over;
+- :func:`die_at`: fault injection, the process killed as a robot dies.
+
+Any node: :func:`new_readers` — a publisher's readers grew, so what it said before is said again.
 """
 
 from __future__ import annotations
 
 import functools
+import os
+import signal
+import sys
 import threading
 import time
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from typing import Any
 
 import rclpy
+from rclpy.duration import Duration
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.publisher import Publisher
@@ -258,10 +270,9 @@ class Alive:
     def again_to_new_readers(self) -> None:
         """A reader came since the last sample (a restarted world): it has not seen it, and the
         liveliness-changed event alone does not always fire for it."""
-        readers = self.pub.get_subscription_count()
-        if readers > self.readers:
-            self.say()
-        self.readers = readers  # also when one is gone: its successor counts as new
+        back, self.readers = new_readers([self.pub], self.readers)
+        if back:
+            self.pub.publish(String(data=f"agent {self.me}"))
 
 
 def renew_endpoints(node: Node, holder: Any, olds: Collection[Any], singles: Collection[str]) -> None:
@@ -278,3 +289,72 @@ def renew_endpoints(node: Node, holder: Any, olds: Collection[Any], singles: Col
             alive.pub = new
         holder.kind_pubs = {kind: new if p is old else p for kind, p in holder.kind_pubs.items()}
         holder.kind_subs = [new if s is old else s for s in holder.kind_subs]
+
+
+def awaiting_endpoints(
+    node: Node,
+    throttle: tp.Throttle,
+    lacking: Sequence[tuple[Any, str, int, int]],
+    since: float,
+    moved: tp.Unchanged,
+    rediscover_s: float,
+    renew: Callable[[list[Any]], None],
+) -> bool:
+    """An agent node before its Ready (both kinds): whether some endpoint is still unmatched —
+    ``lacking``: (endpoint, what, matched, needed) of each. Said (throttled) once discovery has
+    taken DISCOVERY_NOTE_S since ``since``; when none of those counts has moved for
+    ``rediscover_s`` (``moved`` keeps since when), ``renew(endpoints)`` creates them anew."""
+    if not lacking:
+        return False
+    text = [f"{what} {have}/{need}" for _, what, have, need in lacking]
+    now = time.monotonic()
+    if now - since > tp.DISCOVERY_NOTE_S:
+        throttle.note(("start", "agent"), f"not ready yet: {', '.join(text[:6])}")
+    if moved.for_s(text, now) > rediscover_s:
+        node.get_logger().warning(
+            f"discovery has not moved for {rediscover_s:g} s ({', '.join(text[:6])}): "
+            "creating those endpoints anew"
+        )
+        renew([e for e, _, _, _ in lacking])
+        moved.restart(now)
+    return True
+
+
+class Leaving:
+    """When an agent node leaves, its part over — one rule for both kinds: the result has come
+    after its report, and every reader of the report has acknowledged it (the report is
+    latched, and a writer gone takes its samples along: leaving at once could take the report
+    from a reader that has not read it yet, the world or a recorder; docs/ros.md).
+
+    What else ends a lockstep agent (``agent_node``) is its own, and a realtime robot has neither:
+    the world gone for ``WORLD_LOST_S`` (a realtime robot is cut from the world by a partition
+    for longer than that, and the run goes on once it heals: docs/realtime.md), and a result
+    before its report (a lockstep world ends a run early when its protocol cannot recover; a
+    realtime world asks for the reports, ``run_end``, before any result, and its result may
+    overtake ``run_end`` on the way — a result before the report is not the end of its part)."""
+
+    def __init__(self) -> None:
+        self.result = False  # the result has come after its report
+
+    def may_leave(self, pub_report: Any) -> bool:
+        """Whether it may leave now (asked again until it may)."""
+        return self.result and bool(pub_report.wait_for_all_acked(Duration(seconds=0)))
+
+
+def die_at(node: Node, step: int, now: float) -> None:
+    """Fault injection (``die_at_step``, both agent nodes): from sim time ``step`` on (``now``;
+    -1: never) the process kills itself with SIGKILL — as a robot dies, with no last word."""
+    if 0 <= step <= now:
+        node.get_logger().warning(f"die_at_step {step}: killing this process (SIGKILL) at {now:g}")
+        sys.stderr.flush()
+        os.kill(os.getpid(), signal.SIGKILL)
+
+
+def new_readers(pubs: Iterable[Any], before: int) -> tuple[bool, int]:
+    """Readers back: whether ``pubs`` have more readers than ``before`` (their count at the last
+    look), and their count now — a reader that came (a robot that joins, a peer back from a
+    partition longer than DDS keeps one, a restarted world) missed what was published before
+    it, so the caller says it again. (One reader gone and another come count as none new: the
+    caller looks every second or so.)"""
+    readers = sum(p.get_subscription_count() for p in pubs)
+    return readers > before, readers

@@ -1,11 +1,12 @@
-"""What the world and agent nodes of a realtime run share on the wire (docs/realtime.md): topic,
-action and service names, and the message kinds. Names are relative (under the node's namespace),
-as the lockstep's (:mod:`ost_ros.node.transport`)."""
+"""What the world, membership and agent nodes of a realtime run share on the wire
+(docs/realtime.md): the topic names and message kinds of :mod:`ost_ros.realtime.topics`
+(re-exported here: ROS-free, so the supervisor names them too), each robot's own names (its base's
+events, its pose, its base's action) and the ``joins`` parameter read. Names are relative (under
+the node's namespace), as the lockstep's (:mod:`ost_ros.node.transport`)."""
 
 from __future__ import annotations
 
 from ost_ros.node.params import ParameterError
-from ost_ros.realtime.messages import Lost
 from ost_ros.realtime.topics import (
     BASE_CLOCK,
     BASE_GOALS,
@@ -32,7 +33,6 @@ __all__ = [
     "NEEDS",
     "STOPPED_BASES",
     "STOP_BASES",
-    "Lost",
     "message_kinds",
     "relayed",
 ]

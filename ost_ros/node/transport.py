@@ -31,8 +31,7 @@ from rclpy.subscription import Subscription
 
 from ost_msgs_py import auth, wire
 from ost_msgs_py.wire import MessageError
-from ost_ros import protocols
-from ost_ros.lockstep.messages import Acted, AgentReport, Ready, Resend, RunEnd, RunInfo, Sample, Tick
+from ost_ros.lockstep.messages import Acted, AgentReport, Ready, Resend, RunEnd, RunInfo, Sample
 from ost_ros.model import Scenario
 from ost_ros.node.signing import NodeAuth
 from ost_ros.scenario import scenario_to_dict
@@ -139,13 +138,6 @@ TOPICS: dict[str, tuple[QoSProfile, str]] = {
     RESULT: (RESULT_QOS, "std_msgs/msg/String"),
     RUN_INFO: (LATCHED_ALL_QOS, wire.type_name(RunInfo)),
 }
-TICK_TYPE = wire.type_name(Tick)
-
-
-def protocol_topics(protocol: str) -> dict[str, tuple[QoSProfile, str]]:
-    """The topics only a run of the given protocol has: one per message kind it broadcasts."""
-    return {message_topic(m): (LOCKSTEP_QOS, wire.type_name(m)) for m in protocols.get(protocol).messages}
-
 
 # Fast DDS now and then never pairs one writer with one reader while the rest of discovery
 # completes: twice in about ten 51-process runs here an agent's writer stayed at 48/50 readers
@@ -249,6 +241,11 @@ class Throttle:
 
 
 Skip = Callable[[Any], bool]
+
+
+def other_run(run: str) -> Skip:
+    """A ``skip`` for :func:`subscribe`: a message of another run than ``run`` (a stray node's)."""
+    return lambda m: m.run != run
 
 
 class Receiver:

@@ -17,7 +17,12 @@ with a stamped :class:`~ost_ros.realtime.messages.Back`, and the first in batch 
 may be a member from any Back's stamp on); if it dies meanwhile, it is declared again, for the
 life a Back gave it.
 
-The same object serves the in-process run (:mod:`ost_ros.realtime.run`) and a membership node.
+The same object serves the in-process run (:mod:`ost_ros.realtime.run`: every broadcast through
+:meth:`Monitor.hear`) and a membership node (``world_node.membership``), which must hold every
+message it counts — it relays them — so it notes of each robot only the watermark whose messages
+it holds all of (:meth:`Monitor.note`, with :meth:`Monitor.want` and :meth:`Monitor.readmitted` for
+what else a message says) and hands a Hello to :meth:`Monitor.hear`; it never writes the monitor's
+state itself.
 """
 
 from __future__ import annotations
@@ -99,15 +104,14 @@ class Monitor:
         if isinstance(payload, Envelope):
             self.note(payload.sender, payload.implied, payload.seq)
             if isinstance(payload.message, Back):
-                b = payload.message
-                self.lives[b.agent] = max(self.lives.get(b.agent, 0), b.incarnation)
+                self.readmitted(payload.message)
             if bool(getattr(payload.message, "SHARED", True)):
-                self.wanted.add(payload.stamp)
+                self.want(payload.stamp)
         elif isinstance(payload, Mark):
             self.note(payload.sender, payload.watermark, payload.seq)
         elif isinstance(payload, Need):
             self.note(payload.sender, payload.watermark, payload.seq)
-            self.wanted.add(payload.stamp)
+            self.want(payload.stamp)
         elif isinstance(payload, Hello) and payload.incarnation > self.out.get(payload.sender, 1 << 30):
             # it may be a member again from any Back's stamp on: wait for its watermark
             del self.out[payload.sender]
@@ -121,6 +125,24 @@ class Monitor:
         w, q = self.heard.get(agent, (-1, 0))
         if watermark > w:
             self.heard[agent] = (watermark, max(seq, q))
+
+    def want(self, stamp: int) -> None:
+        """Every member will need batch ``stamp`` (a message stamped so, a Need, a notice): the
+        next :meth:`tick` that commits it says so."""
+        self.wanted.add(stamp)
+
+    def readmitted(self, back: Back) -> None:
+        """A member's Back readmits ``back.agent`` as its life ``back.incarnation``: the life its
+        next notice ends (a copy, or an older life's Back heard late, changes nothing)."""
+        self.lives[back.agent] = max(self.lives.get(back.agent, 0), back.incarnation)
+
+    def misfit(self, payload: object) -> str | None:
+        """Why a membership message does not fit the team as the monitor knows it (:func:`misfit`)."""
+        return misfit(payload, self.team, self.lives)
+
+    def away(self) -> list[int]:
+        """The robots out or dead, in id order (their messages nobody but the monitor says again)."""
+        return sorted(set(self.out) | self.dead)
 
     def members(self) -> list[int]:
         """The robots whose watermark it waits for: every robot not out (a robot asking back
@@ -168,6 +190,6 @@ class Monitor:
         self.serial += 1
         d = Declaration(agent, life, max(w + 1, self.committed + 1), q, w, self.serial)
         self.declared.append(d)
-        self.wanted.add(d.stamp)  # every member will need that batch: say when it is passed
+        self.want(d.stamp)  # every member will need that batch: say when it is passed
         self.out[agent] = life
         return d

@@ -8,6 +8,7 @@ import sys
 import time
 
 from ost_msgs_py import wire
+from ost_ros import protocols
 from ost_ros.coordination import CoordinationPolicy
 from ost_ros.lockstep.messages import Tick
 from ost_ros.model import Grid
@@ -19,7 +20,10 @@ from tests.ros.dds_helpers import BIN, INSECURE, reference, ros_env
 def expected_topics(protocol: str, agents: int, ns: str = "/ost") -> dict[str, str]:
     """Every topic of a run and its type, as ``ros2 topic list -t`` resolves them."""
     topics = {f"{ns}/{name}": kind for name, (_, kind) in tp.TOPICS.items()}
-    topics.update({f"{ns}/{name}": kind for name, (_, kind) in tp.protocol_topics(protocol).items()})
+    # one per message kind the protocol broadcasts (the lockstep agent's runtime.kinds)
+    topics.update(
+        {f"{ns}/{tp.message_topic(m)}": wire.type_name(m) for m in protocols.get(protocol).messages}
+    )
     for i in range(agents):
         topics[f"{ns}/{tp.tick_topic(i)}"] = wire.type_name(Tick)
         topics[f"{ns}/{tp.alive_topic(i)}"] = "std_msgs/msg/String"

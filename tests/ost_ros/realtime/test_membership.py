@@ -55,7 +55,7 @@ def splits(draw, s):
 @settings(max_examples=150, deadline=None)
 @given(data=st.data())
 def test_robots_declared_out_come_back_and_joiners_are_used_and_all_agree(data):
-    """(1 000 runs of the same mix: benchmarks/bench_membership.py, figures in docs/realtime.md)"""
+    """(1 000 runs of the same mix: benchmarks/bench_membership.py, figures in docs/benchmarks.md)"""
     s, protocol, policy, how = data.draw(teams(agents=(2, 6), protocols=READMIT))
     kills, silences, joins = data.draw(faults(s))
     r, report = run_realtime(
@@ -208,3 +208,23 @@ def test_a_membership_message_that_does_not_fit_the_team_is_named():
     assert (
         misfit(Hello(2, -1, 0, (0, 0)), team, lives) == "a hello for life -1 of agent 2, whose life now is 0"
     )
+
+
+def test_the_monitors_api_is_all_a_membership_node_needs_of_it():
+    """What a membership node tells the monitor beside the watermarks it holds (``note``): a
+    stamp every member will need (``want``), a Back (``readmitted``: the life a next notice
+    ends); what it asks (``misfit``, ``away``). The same calls ``hear`` makes of a broadcast."""
+    from ost_ros.realtime.membership import MONITOR, Monitor
+
+    m = Monitor((0, 1, 2))
+    m.note(0, 20, 2)
+    m.note(1, 20, 2)
+    m.want(5)
+    assert m.tick(float("inf")) == [] and m.committed == -1  # robot 2 holds it back
+    assert m.declare(2) is not None and m.away() == [2]
+    assert m.tick(float("inf")) == [Mark(MONITOR, 20, 1)]  # 5 and the notice's 0 committed
+    m.readmitted(Back(0, 21, 2, 1, 0, (0, 0)))
+    m.readmitted(Back(1, 21, 2, 0, 0, (0, 0)))  # an older life's, late: nothing
+    assert m.lives[2] == 1 and m.misfit(Hello(2, 0, 0, (0, 0))) is not None
+    assert m.misfit(Hello(2, 1, 0, (0, 0))) is None and m.misfit(Hello(5, 1, 0, (0, 0))) is not None
+    assert m.declare(1, dead=True) is not None and m.away() == [1, 2]
