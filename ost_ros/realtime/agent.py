@@ -33,6 +33,7 @@ import hashlib
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
+from enum import Enum
 
 from ost_ros.coordination import Assignment
 from ost_ros.model import Cell, can_move
@@ -184,6 +185,27 @@ class Record:
     def digest(self, d: Digest) -> None:
         if self.whole:
             self.digests[d.stamp] = d
+
+
+class Unfinished(Enum):
+    """Why a goal of its base ended without reaching its end, as the runtime takes it."""
+
+    MEMBER_FAILED = "a member of its group failed: wait for the comm, or decide on what it says"
+    STALE = "planned from a picture gone stale, or another client took its base over: decide again"
+    STOPPED = "its base was stopped: it was declared out (its notice is on the way)"
+
+
+# The base's code (RealtimeWorld's REFUSALS) -> how the runtime takes it; a code not here that
+# refused a goal is a warning (a fault of its own planning).
+UNFINISHED = {
+    "MEMBER_FAILED": Unfinished.MEMBER_FAILED,
+    "START": Unfinished.STALE,  # its path started where the base no longer is
+    "PREEMPTED": Unfinished.STALE,  # (an operator's goal took its base over)
+    "DELIVERED": Unfinished.STALE,  # (an answer from mid-carry came after the carry's result)
+    "FAILED": Unfinished.STOPPED,
+}
+# Its base across a network: a hold may come after its base moved on past the object.
+UNFINISHED_REMOTE = {**UNFINISHED, "NOT_AT_OBJECT": Unfinished.STALE}
 
 
 # ----------------------------------------------------------------------------- the runtime
@@ -370,29 +392,26 @@ class RealtimeAgent:
             self._decide_at(res.time, now)
         elif res.outcome in (ABORTED, REFUSED):
             g.goal, g.sweep, g.lifted = None, None, -1
-            task = self._task()
-            if res.code == "MEMBER_FAILED":
-                if task is None:
-                    pass  # it let go of it already (its comm heard of the failure first)
-                elif self._member_lost(task):
-                    # its comm has heard of the failure already (the notice may be stamped well
-                    # before the abort reached it): decide on what the comm now says
-                    self._decide_again(now)
-                else:
-                    g.blocked = task.object  # until the comm hears of the failure
-            elif res.code in ("START", "PREEMPTED", "DELIVERED") or (
-                res.code == "NOT_AT_OBJECT" and self.remote_base
-            ):
-                # planned from a stale feedback (over DDS an answer from mid-carry can come after
-                # the carry's result: the object is delivered; a hold comes after its base moved
-                # on past the object), or another client took its base over (an operator's
-                # goal): look again, decide again
+            why = (UNFINISHED_REMOTE if self.remote_base else UNFINISHED).get(res.code)
+            if why is Unfinished.MEMBER_FAILED:
+                self._member_failed(now)
+            elif why is Unfinished.STALE:
                 self._decide_again(now)
-            elif res.code == "FAILED":
-                pass  # its base was stopped: it was declared out (its notice is on the way)
-            elif res.outcome == REFUSED:
+            elif why is None and res.outcome == REFUSED:
                 self.agent.warnings.append(f"goal refused at {res.time}: {res.reason}")
         return self._flush(now)
+
+    def _member_failed(self, now: float) -> None:
+        """Its carry was aborted: a member of its group failed."""
+        task = self._task()
+        if task is None:
+            return  # it let go of it already (its comm heard of the failure first)
+        if self._member_lost(task):
+            # its comm has heard of the failure already (the notice may be stamped well before
+            # the abort reached it): decide on what the comm now says
+            self._decide_again(now)
+        else:
+            self.goals.blocked = task.object  # until the comm hears of the failure
 
     def on_detection(self, det: Detection, now: float) -> list[Output]:
         a = self.agent
